@@ -1,0 +1,206 @@
+"""SHOT.csv / SHOT.parquet + sidecar SHOT.json: read, validate, write (atomically).
+
+Columns (contract): ``frame`` (video frame index), ``t`` (s since the start frame),
+``x``, ``y`` (m, rock centre on the ice), ``theta`` (rad, cumulative, CCW from above),
+``ok`` (1 = measured).  Optional: ``sigma_xy`` (m), ``sigma_theta`` (rad), ``quality``
+and anything else (kept as is).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import __version__
+from ._atomic import atomic_path, write_json
+from .errors import SeriesError
+
+COLUMNS = ("frame", "t", "x", "y", "theta", "ok")
+OPTIONAL_COLUMNS = ("sigma_xy", "sigma_theta", "quality")
+SIDECAR_KEYS = ("fps", "start_frame", "n_frames", "stop_frame_translation",
+                "stop_frame_rotation", "t_stop_translation", "t_stop_rotation",
+                "camera_height_m", "grid_spacing_px", "frames_lost", "warnings", "version")
+
+
+@dataclass
+class Series:
+    """A shot's per-frame series and its sidecar metadata.
+
+    Attributes
+    ----------
+    data : DataFrame
+        The contract's columns (``frame, t, x, y, theta, ok`` + optional ones).
+    meta : dict
+        The sidecar (``fps``, stop frames/times, ``warnings`` ...).
+    path : Path or None
+        Where it was read from.
+    """
+
+    data: pd.DataFrame
+    meta: dict = field(default_factory=dict)
+    path: Path | None = None
+
+    @property
+    def warnings(self) -> list:
+        return self.meta.setdefault("warnings", [])
+
+    @property
+    def measured(self) -> pd.DataFrame:
+        """Rows with ``ok`` = 1."""
+        return self.data[self.data["ok"] == 1]
+
+    @property
+    def name(self) -> str:
+        return str(self.path) if self.path else "<series>"
+
+
+def sidecar_path(path) -> Path:
+    """``SHOT.csv`` -> ``SHOT.json``."""
+    return Path(path).with_suffix(".json")
+
+
+def make_meta(fps: float, n_frames: int, start_frame: int = 0, **extra) -> dict:
+    """A sidecar dict with every contract key present (unknown ones None)."""
+    meta = {k: None for k in SIDECAR_KEYS}
+    meta.update(fps=float(fps), start_frame=int(start_frame), n_frames=int(n_frames),
+                frames_lost=0, warnings=[], version=__version__)
+    meta.update(extra)
+    return meta
+
+
+def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, list[str]]:
+    """Check a series table against the contract; return a clean copy and warnings.
+
+    Raises
+    ------
+    SeriesError
+        Missing columns, text in numbers, non-increasing ``t``, bad ``ok`` values.
+    """
+    missing = [c for c in COLUMNS if c not in data.columns]
+    if missing:
+        raise SeriesError(f"missing column(s) {missing}; expected {list(COLUMNS)}", path=name)
+    out = data.copy()
+    for col in out.columns:
+        if col in COLUMNS or col in OPTIONAL_COLUMNS:
+            num = pd.to_numeric(out[col], errors="coerce")
+            bad = num.isna() & out[col].notna() & (out[col].astype(str).str.strip() != "")
+            if bad.any():
+                row = int(np.flatnonzero(bad.to_numpy())[0])
+                raise SeriesError(f"non-numeric value {out[col].iloc[row]!r} in column "
+                                  f"'{col}'", path=name, where=f"row {row + 2}")
+            out[col] = num.astype(float)
+    warnings: list[str] = []
+    if len(out) == 0:
+        raise SeriesError("no rows", path=name)
+    for col in ("frame", "t", "ok"):
+        if out[col].isna().any():
+            row = int(np.flatnonzero(out[col].isna().to_numpy())[0])
+            raise SeriesError(f"empty '{col}'", path=name, where=f"row {row + 2}")
+    if not np.isin(out["ok"], (0, 1)).all():
+        row = int(np.flatnonzero(~np.isin(out["ok"], (0, 1)))[0])
+        raise SeriesError(f"'ok' must be 0 or 1, got {out['ok'].iloc[row]!r}",
+                          path=name, where=f"row {row + 2}")
+    t = out["t"].to_numpy()
+    if not np.isfinite(t).all():
+        row = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise SeriesError("non-finite 't'", path=name, where=f"row {row + 2}")
+    dt = np.diff(t)
+    if (dt <= 0).any():
+        row = int(np.flatnonzero(dt <= 0)[0]) + 1
+        kind = "duplicate" if dt[row - 1] == 0 else "decreasing"
+        raise SeriesError(f"{kind} time t={t[row]!r} (t must increase)", path=name,
+                          where=f"row {row + 2}")
+    out["frame"] = out["frame"].astype(int)
+    out["ok"] = out["ok"].astype(int)
+    vals = out[["x", "y", "theta"]].to_numpy()
+    holes = (out["ok"].to_numpy() == 1) & ~np.isfinite(vals).all(axis=1)
+    if holes.any():
+        rows = np.flatnonzero(holes)
+        warnings.append(f"{name}: {len(rows)} row(s) marked ok=1 have empty/NaN x, y or "
+                        f"theta (first at row {rows[0] + 2}); treated as ok=0")
+        out.loc[holes, "ok"] = 0
+    return out, warnings
+
+
+def read_series(path) -> Series:
+    """Read a SHOT.csv or SHOT.parquet and its sidecar (if any), validated.
+
+    Raises
+    ------
+    SeriesError
+        The file is missing, unreadable or violates the contract.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise SeriesError("file not found", path=path)
+    try:
+        if path.suffix.lower() == ".parquet":
+            data = pd.read_parquet(path)
+        else:
+            data = pd.read_csv(path, dtype=str, keep_default_na=False, na_values=[""])
+    except Exception as exc:  # pandas raises many kinds; all mean "unreadable"
+        raise SeriesError(f"cannot read series ({type(exc).__name__}: {exc})".splitlines()[0],
+                          path=path) from None
+    data, warnings = validate(data, str(path))
+    meta = {}
+    side = sidecar_path(path)
+    if side.exists():
+        try:
+            meta = json.loads(side.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise SeriesError(f"cannot read sidecar ({exc})", path=side) from None
+        if not isinstance(meta, dict):
+            raise SeriesError("sidecar must be a JSON object", path=side)
+    elif path.suffix.lower() == ".parquet":
+        raw = _parquet_meta(path)
+        meta = raw or {}
+    meta.setdefault("warnings", [])
+    meta["warnings"] = list(meta["warnings"]) + warnings
+    return Series(data.reset_index(drop=True), meta, path)
+
+
+def _parquet_meta(path) -> dict | None:
+    import pyarrow.parquet as pq
+
+    md = pq.read_schema(path).metadata or {}
+    raw = md.get(b"curltrack")
+    return json.loads(raw) if raw else None
+
+
+def write_series(path, series: Series | pd.DataFrame, meta: dict | None = None) -> Path:
+    """Write a series (``.csv`` or ``.parquet`` by extension) and its sidecar, atomically.
+
+    Returns
+    -------
+    Path
+        The sidecar's path.
+    """
+    if isinstance(series, Series):
+        data, meta = series.data, (meta if meta is not None else series.meta)
+    else:
+        data = series
+    meta = dict(meta or {})
+    meta.setdefault("version", __version__)
+    meta.setdefault("warnings", [])
+    data = data.copy()
+    cols = list(COLUMNS) + [c for c in data.columns if c not in COLUMNS]
+    data = data[cols]
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        if path.suffix.lower() == ".parquet":
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+
+            table = pa.Table.from_pandas(data, preserve_index=False)
+            md = dict(table.schema.metadata or {})
+            md[b"curltrack"] = json.dumps(meta, default=float).encode()
+            pq.write_table(table.replace_schema_metadata(md), tmp)
+        else:
+            data.to_csv(tmp, index=False, float_format="%.9g", na_rep="")
+    side = sidecar_path(path)
+    write_json(side, meta)
+    return side

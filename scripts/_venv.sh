@@ -1,0 +1,22 @@
+# Sourced by test.sh / demo.sh / bench: create or refresh .venv and install curltrack.
+# Works on a fresh machine (only python3 >= 3.11 needed; packages from the registry).
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+PY="${PYTHON:-python3}"
+VENV="$ROOT/.venv"
+EXTRAS="${1:-}"
+if [ ! -x "$VENV/bin/python" ]; then
+  echo "[curltrack] creating virtual environment in $VENV" >&2
+  "$PY" -m venv "$VENV"
+fi
+STAMP="$VENV/.installed${EXTRAS:+-$EXTRAS}"
+if [ ! -f "$STAMP" ] || [ "$ROOT/pyproject.toml" -nt "$STAMP" ]; then
+  echo "[curltrack] installing curltrack${EXTRAS:+[$EXTRAS]} and its dependencies" >&2
+  "$VENV/bin/python" -m pip install -q --upgrade pip >&2
+  "$VENV/bin/python" -m pip install -q -e "$ROOT${EXTRAS:+[$EXTRAS]}" >&2
+  touch "$STAMP"
+fi
+export PATH="$VENV/bin:$PATH"
+# Two cores: keep BLAS/OpenCV from oversubscribing when pytest-xdist runs 2 workers.
+export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}" OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
+export MPLBACKEND=Agg
