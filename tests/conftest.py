@@ -1,9 +1,5 @@
-import numpy as np
-import pytest
+"""Shared test set-up.  Randomness in tests is always seeded."""
 
+import os
 
-@pytest.fixture(autouse=True)
-def _numpy_errors_raise():
-    """As in trackpy's tests: silent NaN-producing numpy operations are bugs."""
-    with np.errstate(invalid="raise", divide="raise", over="raise"):
-        yield
+os.environ.setdefault("MPLBACKEND", "Agg")
