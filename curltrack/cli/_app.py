@@ -57,3 +57,17 @@ def _debug() -> bool:
     import os
 
     return os.environ.get("CURLTRACK_DEBUG", "") not in ("", "0")
+
+
+def _version(value: bool):
+    if value:
+        from .. import __version__
+
+        typer.echo(f"curltrack {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print the version and exit.")):
+    """Measure how curling rocks move (Jensen & Shegelski 2004)."""

@@ -1,0 +1,458 @@
+"""The paper's analysis of one shot: closed-form fits and derived physics, with 1σ errors.
+
+Three Levenberg–Marquardt fits (lmfit, ``leastsq``) on the measured rows (``ok`` = 1):
+
+* rotation:  theta(t) = theta0 + theta_F [1 - (1 - t/t_Ftheta)^lambda_theta]
+* translation, joint in x and y, with the deskew angle:
+  (x, y) = (x0, y0) + Rot(psi) (X(t), Y(t)),
+  Y = y_F [1 - (1 - t/t_FS)^lambda_y],  X = the paper's curl x(t) with a constant a_T and
+  lambda = lambda_y (as in the paper) — and again with lambda free (``lambda_x``).
+
+``t_F`` is fitted jointly by default (a detected stop is typically a few frames early,
+which biases lambda by ~0.01); ``fixed_stop=True`` holds it at the sidecar's stop time,
+as the paper did.  With ``t_F`` free the rows up to the detected stop + ``STOP_MARGIN_S``
+are used so that the fitted stop is constrained from both sides; with it fixed, rows with
+0 <= t <= t_F.  The offsets (theta0, x0, y0) absorb the uncertainty of the series'
+origin, which is itself estimated from noisy frames.
+
+Derived quantities (phi, alpha, omega0, v0, C_omega, C_y, x_F, ...) are computed by the
+formulas of :mod:`curltrack.physics.closed_form` on correlated ``uncertainties`` values
+built from each fit's covariance, so their errors are propagated, not guessed.
+
+Shot type (documented rule, in this order):
+
+* ``pure_rotation``: the rock's centre moves less than ``PURE_ROTATION_MAX_TRAVEL_M``
+  (0.10 m, a third of its diameter) over the whole series;
+* ``rrss`` (rapid rotation, slow sliding): the running band's initial rotation speed
+  exceeds the initial translation speed, r |omega0| > v0;
+* ``draw``: otherwise (r |omega0| <= v0, translation dominates).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import lmfit
+import numpy as np
+import pandas as pd
+
+from . import __version__
+from .errors import FitError
+from .physics import closed_form as cf
+from .rig import Rig, default_rig
+from .series import Series
+
+PURE_ROTATION_MAX_TRAVEL_M = 0.10
+STOP_MARGIN_S = 0.5
+MIN_POINTS = 12
+#: Rotation smaller than this (rad) is "no spin": theta is not fitted.
+MIN_ROTATION_RAD = 0.2
+
+FIT_KEYS = (
+    "shot_type", "skew_deg", "t_FS", "t_Ftheta", "theta_F", "lambda_theta", "omega0",
+    "phi_theta", "alpha_theta", "y_F", "lambda_y", "v0", "phi_y", "alpha_y", "x_F", "a_T",
+    "a_T_free", "lambda_x", "x_F_free", "x_stop", "n_turns", "C_omega", "C_y", "rms_x",
+    "rms_y", "rms_theta", "n_points",
+)
+#: keys that carry no uncertainty
+_NO_ERR = {"shot_type", "rms_x", "rms_y", "rms_theta", "n_points", "x_stop"}
+
+
+@dataclass
+class FitResult:
+    """Result of :func:`fit_series`: flat values, 1σ errors, fit diagnostics.
+
+    Attributes
+    ----------
+    values : dict
+        FIT.json keys (contract) -> value (None where it does not apply).
+    errors : dict
+        key -> 1σ uncertainty (same units), for every fitted or derived quantity.
+    warnings : list of str
+    fits : dict
+        name -> lmfit.MinimizerResult (``"theta"``, ``"xy"``, ``"xy_free"``).
+    """
+
+    values: dict
+    errors: dict
+    warnings: list = field(default_factory=list)
+    fits: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """The FIT.json mapping: every key, its ``_err``, extras, warnings."""
+        out = {}
+        for k in FIT_KEYS:
+            out[k] = _plain(self.values.get(k))
+            if k not in _NO_ERR:
+                out[f"{k}_err"] = _plain(self.errors.get(k))
+        out.update({k: _plain(v) for k, v in self.extra.items()})
+        out["warnings"] = list(self.warnings)
+        out["version"] = __version__
+        return out
+
+    def report(self) -> str:
+        """A short human-readable summary."""
+        lines = [f"shot type: {self.values.get('shot_type')}"]
+        for k in FIT_KEYS[1:]:
+            v = self.values.get(k)
+            if v is None or isinstance(v, str):
+                continue
+            e = self.errors.get(k)
+            lines.append(f"  {k:>14s} = {v:.6g}" + (f" ± {e:.2g}" if e is not None else ""))
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+def _plain(v):
+    if v is None or isinstance(v, str):
+        return v
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+# ---------------------------------------------------------------------------------------
+# residual models
+
+def _theta_model(p, t):
+    return p["theta0"] + cf.decel_position(t, p["theta_F"], p["lambda_theta"], p["t_Ftheta"])
+
+
+def shot_frame_model(p, t):
+    """(X, Y) of the translation fit in the deskewed frame (no offset, no rotation)."""
+    lam_x = p["lambda_x"] if "lambda_x" in p else p["lambda_y"]
+    X = cf.curl_position(t, p["a_T"], lam_x, p["t_FS"])
+    Y = cf.decel_position(t, p["y_F"], p["lambda_y"], p["t_FS"])
+    return X, Y
+
+
+def deskew(p, x, y):
+    """Measured (x, y) -> the deskewed frame of fit parameters ``p`` (offsets removed)."""
+    c, s = math.cos(p["psi"]), math.sin(p["psi"])
+    dx, dy = np.asarray(x) - p["x0"], np.asarray(y) - p["y0"]
+    return c * dx + s * dy, -s * dx + c * dy
+
+
+def _xy_model(p, t):
+    X, Y = shot_frame_model(p, t)
+    c, s = math.cos(p["psi"]), math.sin(p["psi"])
+    return p["x0"] + c * X - s * Y, p["y0"] + s * X + c * Y
+
+
+def _values(params: lmfit.Parameters) -> dict:
+    return {k: v.value for k, v in params.items()}
+
+
+def _minimize(resid, params, name, path):
+    try:
+        res = lmfit.minimize(resid, params, method="leastsq", max_nfev=4000)
+    except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
+        raise FitError(f"{name} fit failed ({exc})", path=path) from None
+    if not res.success:
+        raise FitError(f"{name} fit did not converge ({res.message})", path=path)
+    if not res.errorbars or res.covar is None:
+        raise FitError(f"{name} fit converged but its uncertainties could not be estimated "
+                       "(parameters degenerate or at a bound)", path=path)
+    return res
+
+
+def _at_bound_warnings(res, name) -> list[str]:
+    out = []
+    for k, p in res.params.items():
+        if not p.vary:
+            continue
+        span = (p.max - p.min) if np.isfinite(p.max - p.min) else abs(p.value) + 1.0
+        if min(abs(p.value - p.min), abs(p.max - p.value)) < 1e-6 * span:
+            out.append(f"{name} fit: parameter {k} = {p.value:.6g} is at its bound")
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# noise
+
+def noise_level(t: np.ndarray, q: np.ndarray, t_stop: float | None) -> float:
+    """Estimate the white measurement noise (1σ, units of ``q``) from the data.
+
+    From rows after the stop when there are enough (>= 8), otherwise from second
+    differences of the moving part (for smooth motion d²q ≈ noise, var = 6σ²).
+    """
+    if t_stop is not None:
+        rest = q[t > t_stop + 0.1]
+        if len(rest) >= 8:
+            return float(np.std(rest, ddof=1))
+    d2 = np.diff(q, 2)
+    if len(d2) < 3:
+        return float("nan")
+    mad = np.median(np.abs(d2 - np.median(d2))) * 1.4826
+    return float(mad / math.sqrt(6.0))
+
+
+# ---------------------------------------------------------------------------------------
+# the fits
+
+def _stop_time(series: Series, key: str, warnings: list) -> float | None:
+    """Stop time from the sidecar, else detected from the series (with a warning)."""
+    meta = series.meta
+    if key in meta:
+        return meta[key]
+    from .track.stops import detect_stops  # lazy: only needed without a sidecar
+
+    data = series.data
+    fps = meta.get("fps") or 1.0 / float(np.median(np.diff(data["t"])))
+    stops = detect_stops(data, fps)
+    meta.update({"t_stop_translation": stops.t_stop_translation,
+                 "t_stop_rotation": stops.t_stop_rotation})
+    warnings.append(f"{series.name}: no sidecar with stop times; stops detected from the "
+                    f"series (translation {stops.t_stop_translation}, rotation "
+                    f"{stops.t_stop_rotation} s)")
+    return meta[key]
+
+
+def _window(t, t_stop, fixed_stop, name, coord, path, warnings):
+    """Rows used for a fit and the (initial) t_F with its bounds."""
+    t_last = float(t[-1])
+    if t_stop is None:
+        if fixed_stop:
+            raise FitError(f"the rock never stopped in {coord} within the series "
+                           "(no stop time); --fixed-stop needs one", path=path)
+        warnings.append(f"{name}: the rock did not stop within the series; t_F is "
+                        "extrapolated beyond the last frame")
+        use = t >= 0
+        return use, 1.3 * t_last, (t_last, 20.0 * t_last + 1.0)
+    t_stop = float(t_stop)
+    if fixed_stop:
+        return (t >= 0) & (t <= t_stop), t_stop, None
+    use = (t >= 0) & (t <= t_stop + STOP_MARGIN_S)
+    return use, t_stop, (0.5 * t_stop, t_stop + 2.0 * STOP_MARGIN_S + 1.0)
+
+
+def _check_points(n, need, what, path):
+    if n < max(MIN_POINTS, need + 3):
+        raise FitError(f"too few measured points for the {what} fit ({n}; need at least "
+                       f"{max(MIN_POINTS, need + 3)})", path=path)
+
+
+def fit_rotation(t, theta, t_stop, fixed_stop=False, sigma=None, path=None, warnings=None):
+    """Fit theta(t) = theta0 + theta_F [1 - (1 - t/t_F)^lambda].
+
+    Parameters
+    ----------
+    t, theta : ndarray
+        Times (s) and cumulative angles (rad) of the measured rows.
+    t_stop : float or None
+        Detected rotation stop (s).
+    fixed_stop : bool
+        Hold t_F at ``t_stop``.
+    sigma : float, optional
+        Noise (rad) used to weight the residuals (the covariance is scaled by the
+        reduced chi-square in any case).
+
+    Returns
+    -------
+    lmfit.MinimizerResult
+    """
+    warnings = [] if warnings is None else warnings
+    use, tF, bounds = _window(t, t_stop, fixed_stop, "rotation", "rotation", path, warnings)
+    tt, qq = t[use], theta[use]
+    _check_points(len(tt), 4 - fixed_stop, "rotation", path)
+    sigma = sigma if sigma and np.isfinite(sigma) and sigma > 0 else 1.0
+    p = lmfit.Parameters()
+    q_end = float(np.median(qq[-3:]))
+    p.add("theta_F", value=q_end if abs(q_end) > 1e-6 else 1e-3)
+    p.add("lambda_theta", value=1.6, min=1.0001, max=6.0)
+    p.add("t_Ftheta", value=tF, vary=bounds is not None,
+          **({} if bounds is None else dict(min=bounds[0], max=bounds[1])))
+    p.add("theta0", value=0.0)
+    return _minimize(lambda pp: (_theta_model(pp, tt) - qq) / sigma, p, "rotation", path)
+
+
+def fit_translation(t, x, y, t_stop, fixed_stop=False, free_lambda=False, sigma=None,
+                    path=None, warnings=None, start=None):
+    """Joint fit of x(t), y(t) with deskew angle ``psi`` (rad).
+
+    ``free_lambda`` adds ``lambda_x`` (the curl's own exponent) instead of tying it to
+    lambda_y.  ``start`` (dict) gives starting values, e.g. the tied fit's.
+    """
+    warnings = [] if warnings is None else warnings
+    use, tF, bounds = _window(t, t_stop, fixed_stop, "translation", "translation", path,
+                              warnings)
+    tt, xx, yy = t[use], x[use], y[use]
+    _check_points(len(tt), 7 + free_lambda - fixed_stop, "translation", path)
+    sigma = sigma if sigma and np.isfinite(sigma) and sigma > 0 else 1.0
+    y_end = float(np.median(yy[-3:]))
+    x_end = float(np.median(xx[-3:]))
+    start = dict(start or {})
+    p = lmfit.Parameters()
+    p.add("y_F", value=start.get("y_F", y_end if abs(y_end) > 1e-6 else 1e-3))
+    p.add("lambda_y", value=start.get("lambda_y", 1.9), min=1.0001, max=6.0)
+    p.add("t_FS", value=start.get("t_FS", tF), vary=bounds is not None,
+          **({} if bounds is None else dict(min=bounds[0], max=bounds[1])))
+    p.add("a_T", value=start.get("a_T", 2.0 * 1.9 * x_end / tF**2))
+    if free_lambda:
+        p.add("lambda_x", value=start.get("lambda_x", start.get("lambda_y", 1.9)),
+              min=1.0001, max=6.0)
+    p.add("psi", value=start.get("psi", 0.0), min=-0.5, max=0.5)
+    p.add("x0", value=start.get("x0", 0.0))
+    p.add("y0", value=start.get("y0", 0.0))
+
+    def resid(pp):
+        mx, my = _xy_model(pp, tt)
+        return np.concatenate([(mx - xx) / sigma, (my - yy) / sigma])
+
+    name = "translation (lambda free)" if free_lambda else "translation"
+    return _minimize(resid, p, name, path)
+
+
+def classify(travel_m: float, v0: float | None, omega0: float | None, r: float) -> str:
+    """Shot type by the module's documented rule."""
+    if travel_m < PURE_ROTATION_MAX_TRAVEL_M or v0 is None:
+        return "pure_rotation"
+    if omega0 is not None and r * abs(omega0) > abs(v0):
+        return "rrss"
+    return "draw"
+
+
+def _nominal(u):
+    return None if u is None else float(getattr(u, "nominal_value", u))
+
+
+def _stderr(u):
+    if u is None:
+        return None
+    s = getattr(u, "std_dev", None)
+    return None if s is None else float(s)
+
+
+def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False) -> FitResult:
+    """The paper's fits and derived quantities for one shot.
+
+    Parameters
+    ----------
+    series : Series
+        A validated series (see :func:`curltrack.series.read_series`).
+    rig : Rig, optional
+        Supplies R (``inertia_radius_m``) and r (``band_radius_m``); contract defaults.
+    fixed_stop : bool
+        Hold t_F at the sidecar's (or detected) stop times, as the paper did.
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    FitError
+        Too few points, a fit that does not converge, or no stop with ``fixed_stop``.
+    """
+    rig = rig or default_rig()
+    R, r = rig.inertia_radius_m, rig.band_radius_m
+    path = series.name
+    warnings = list(series.meta.get("warnings", []))
+    d = series.measured
+    d = d[d["t"] >= 0]
+    if len(d) < MIN_POINTS:
+        raise FitError(f"too few measured points ({len(d)}; need at least {MIN_POINTS})",
+                       path=path)
+    t = d["t"].to_numpy(float)
+    x, y, th = (d[c].to_numpy(float) for c in ("x", "y", "theta"))
+    t_rot = _stop_time(series, "t_stop_rotation", warnings)
+    t_tr = _stop_time(series, "t_stop_translation", warnings)
+
+    vals: dict = {k: None for k in FIT_KEYS}
+    errs: dict = {}
+    fits: dict = {}
+    u: dict = {}
+
+    # --- rotation
+    spin = float(np.nanmax(np.abs(th)))
+    if spin >= MIN_ROTATION_RAD:
+        s_th = _weights(d, "sigma_theta", t, [th], t_rot)
+        res = fit_rotation(t, th, t_rot, fixed_stop, s_th, path, warnings)
+        fits["theta"] = res
+        warnings += _at_bound_warnings(res, "rotation")
+        uv = res.uvars
+        u["theta_F"], u["lambda_theta"] = uv["theta_F"], uv["lambda_theta"]
+        u["t_Ftheta"] = uv["t_Ftheta"] if "t_Ftheta" in uv else res.params["t_Ftheta"].value
+        u["omega0"] = cf.initial_rate(u["theta_F"], u["lambda_theta"], u["t_Ftheta"])
+        u["phi_theta"] = cf.phi_from_lambda(u["lambda_theta"])
+        spin_sign = math.copysign(1.0, res.params["theta_F"].value)
+        u["alpha_theta"] = cf.alpha_rotation(spin_sign * u["omega0"], u["phi_theta"],
+                                             u["t_Ftheta"], R, r)
+        u["n_turns"] = spin_sign * u["theta_F"] / (2 * math.pi)
+        vals["rms_theta"] = _rms(res.residual * s_th)
+    else:
+        warnings.append(f"{path}: the rock turns less than {MIN_ROTATION_RAD} rad; "
+                        "rotation not fitted")
+
+    # --- translation
+    travel = float(np.nanmax(np.hypot(x - x[0], y - y[0])))
+    if travel >= PURE_ROTATION_MAX_TRAVEL_M:
+        s_xy = _weights(d, "sigma_xy", t, [x, y], t_tr)
+        tied = fit_translation(t, x, y, t_tr, fixed_stop, False, s_xy, path, warnings)
+        free = fit_translation(t, x, y, t_tr, fixed_stop, True, s_xy, path, warnings,
+                               start=_values(tied.params))
+        fits["xy"], fits["xy_free"] = tied, free
+        warnings += _at_bound_warnings(tied, "translation")
+        uv, uf = tied.uvars, free.uvars
+        u["y_F"], u["lambda_y"], u["a_T"] = uv["y_F"], uv["lambda_y"], uv["a_T"]
+        u["t_FS"] = uv["t_FS"] if "t_FS" in uv else tied.params["t_FS"].value
+        u["skew_deg"] = -uv["psi"] * 180.0 / math.pi
+        u["v0"] = cf.initial_rate(u["y_F"], u["lambda_y"], u["t_FS"])
+        u["phi_y"] = cf.phi_from_lambda(u["lambda_y"])
+        u["alpha_y"] = cf.alpha_translation(u["v0"], u["phi_y"], u["t_FS"])
+        u["x_F"] = cf.curl_distance(u["a_T"], u["lambda_y"], u["t_FS"])
+        u["a_T_free"], u["lambda_x"] = uf["a_T"], uf["lambda_x"]
+        tfs_free = uf["t_FS"] if "t_FS" in uf else free.params["t_FS"].value
+        u["x_F_free"] = cf.curl_distance(u["a_T_free"], u["lambda_x"], tfs_free)
+        n = len(t)
+        vals["rms_x"] = _rms(tied.residual[:n] * s_xy)
+        vals["rms_y"] = _rms(tied.residual[n:] * s_xy)
+        vals["x_stop"] = _x_stop(t, x, y, tied.params, t_tr)
+
+    shot = classify(travel, _nominal(u.get("v0")), _nominal(u.get("omega0")), r)
+    vals["shot_type"] = shot
+    if "lambda_theta" in u and "lambda_y" in u:
+        if shot == "draw":
+            u["C_omega"] = cf.c_omega(u["lambda_theta"], u["lambda_y"], R, r)
+        elif shot == "rrss":
+            u["C_y"] = cf.c_y(u["lambda_theta"], u["lambda_y"], R, r)
+    if shot == "draw":  # the paper derives phi, alpha from rotation only without translation
+        u.pop("phi_theta", None), u.pop("alpha_theta", None)
+    for k, v in u.items():
+        vals[k] = _nominal(v)
+        errs[k] = _stderr(v)
+    vals["n_points"] = int(len(t))
+    extra = {
+        "t_FS_detected": t_tr, "t_Ftheta_detected": t_rot, "fixed_stop": bool(fixed_stop),
+        "R_m": R, "r_m": r,
+        "chisqr_reduced_theta": fits["theta"].redchi if "theta" in fits else None,
+        "chisqr_reduced_xy": fits["xy"].redchi if "xy" in fits else None,
+    }
+    return FitResult(vals, errs, warnings, fits, extra)
+
+
+def _rms(res) -> float:
+    return float(np.sqrt(np.mean(np.square(res)))) if len(res) else float("nan")
+
+
+def _weights(d: pd.DataFrame, col: str, t, coords, t_stop) -> float:
+    """One noise level (1σ) for the coordinates ``coords`` (list of arrays): the median
+    of the series' per-frame sigma column when present, else estimated from the data
+    (the largest over the coordinates)."""
+    if col in d and d[col].notna().any():
+        s = float(np.nanmedian(d[col].to_numpy(float)))
+        if s > 0:
+            return s
+    return float(np.nanmax([noise_level(t, q, t_stop) for q in coords]))
+
+
+def _x_stop(t, x, y, params, t_stop) -> float | None:
+    """Measured lateral position at rest, in the deskewed frame (m)."""
+    xd, _ = deskew(params.valuesdict(), x, y)
+    if t_stop is None:
+        return float(np.median(xd[-3:]))
+    rest = xd[t >= t_stop]
+    return float(np.median(rest)) if len(rest) else float(np.median(xd[-3:]))
