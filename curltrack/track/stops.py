@@ -1,0 +1,269 @@
+"""Stop times for translation and rotation, estimated below one frame.
+
+A noise threshold ("the last frame that differs from the rest level by 3 sigma") fires
+several frames early, because the final approach ``q_F - q ~ (t_F - t)^lambda`` sinks
+into the noise well before the rock stops.  Instead the final approach is fitted with
+the paper's local form
+
+    q(t) = q_F - c * max(t_F - t, 0)^lambda,      (1)
+
+over a window that ends with the rest level, so that every frame of the approach and of
+the rest contributes to ``t_F``.  For translation ``q`` is the position projected onto the
+direction of the final approach (the curl's sideways part is of second order there); for
+rotation ``q`` is the cumulative angle.
+
+Conventions: ``t`` in s (t = 0 at the start frame), ``x``, ``y`` in m, ``theta`` in rad.
+``stop_frame_*`` is the first frame with ``t >= t_stop_*`` (contract).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import least_squares
+
+__all__ = ["StopTimes", "detect_stops", "fit_final_approach", "noise_sigma"]
+
+#: Displacement (in units of the noise sigma) below which a coordinate is "not moving".
+MIN_MOTION_SIGMA = 12.0
+#: Points of rest needed after the fitted stop to call it a stop (not a cut-off video).
+MIN_REST_FRAMES = 3
+
+
+@dataclass
+class StopTimes:
+    """End of motion, separately for translation and rotation.
+
+    Attributes
+    ----------
+    t_stop_translation, t_stop_rotation : float or None
+        End of motion (s since the start frame); None when that motion does not stop
+        inside the series (still moving at the end, or never moved).
+    stop_frame_translation, stop_frame_rotation : int or None
+        First frame with ``t >= t_stop_*``.
+    t_stop_translation_err, t_stop_rotation_err : float or None
+        1 sigma of ``t_stop_*`` from the fit (s).
+    notes : list of str
+        Why a stop is None, in words (for the sidecar's warnings).
+    """
+
+    t_stop_translation: float | None = None
+    t_stop_rotation: float | None = None
+    stop_frame_translation: int | None = None
+    stop_frame_rotation: int | None = None
+    t_stop_translation_err: float | None = None
+    t_stop_rotation_err: float | None = None
+    notes: list = field(default_factory=list)
+
+    def to_meta(self) -> dict:
+        """The sidecar keys (contract names plus ``*_err``); ``notes`` left out."""
+        d = asdict(self)
+        d.pop("notes")
+        return d
+
+
+def noise_sigma(q: np.ndarray) -> float:
+    """Robust white-noise sigma of a smooth signal from its second differences.
+
+    For white noise of sigma s, the second difference has sigma s*sqrt(6); the smooth
+    motion itself contributes a*dt^2, negligible at video rates.
+    """
+    q = np.asarray(q, dtype=float)
+    if q.size < 4:
+        return 0.0
+    d2 = np.diff(q, 2)
+    mad = np.median(np.abs(d2 - np.median(d2)))
+    return float(1.4826 * mad / np.sqrt(6.0))
+
+
+def _model(p, t, k, quad):
+    """Eq. (1) for k coordinates sharing t_F and lambda.
+
+    p = [t_F, lam, (q_F, c[, b]) * k]; column j is q_F - c tau^lam [- b tau^2].
+    """
+    tau = np.maximum(p[0] - t, 0.0)
+    pw, sq = tau ** p[1], tau**2
+    m = 3 if quad else 2
+    cols = []
+    for j in range(k):
+        col = p[2 + m * j] - p[3 + m * j] * pw
+        if quad:
+            col = col - p[4 + m * j] * sq
+        cols.append(col)
+    return np.column_stack(cols)
+
+
+def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | None = None,
+                       quad: bool = False):
+    """Fit Eq. (1) to coordinates that move toward a rest level and stay there.
+
+    Parameters
+    ----------
+    t : (N,) array
+        Times (s), increasing.
+    q : (N,) or (N, k) array
+        Coordinates (one unit, one noise level).  Column 0 is the main one and must
+        increase toward its rest level (flip its sign before); further columns (e.g. the
+        sideways part of a curling approach) share ``t_F`` and ``lambda`` but have their
+        own rest level and signed amplitude.
+    dt : float
+        Nominal frame period (s).
+    sigma : float, optional
+        Noise sigma of ``q``; estimated from second differences of column 0 when None.
+    quad : bool
+        Add a ``- b tau^2`` term per column.  The paper's curl x(t) near the stop is
+        exactly ``x_F + A tau^lambda + B tau^2`` (its linear term cancels), so with this
+        term the model is exact for a curling draw and a turning direction of motion
+        does not bias ``t_F``.
+
+    Returns
+    -------
+    (t_F, t_F_err, note) : (float or None, float or None, str)
+        ``t_F`` is None when the series does not end at rest; ``note`` says why.
+    """
+    t = np.asarray(t, dtype=float)
+    Q = np.asarray(q, dtype=float)
+    Q = Q[:, None] if Q.ndim == 1 else Q
+    k = Q.shape[1]
+    q = Q[:, 0]
+    n = t.size
+    if n < 8:
+        return None, None, "too few measured frames"
+    if sigma is None:
+        sigma = noise_sigma(q)
+    span = float(np.median(q[-5:]) - np.median(q[:3]))
+    sigma = max(sigma, 1e-9 * max(1.0, abs(span)))
+    if span < MIN_MOTION_SIGMA * sigma:
+        return None, None, "no motion above the noise"
+    q_rest = float(np.median(q[-5:]))
+    # Coarse stop: the last frame clearly below the rest level (fires early in noise).
+    below = np.flatnonzero(q < q_rest - 3.0 * sigma)
+    i_c = int(below[-1]) if below.size else 0
+    if i_c >= n - MIN_REST_FRAMES:
+        return None, None, "still moving at the end of the series"
+    # Window: from where ~35 % of the motion remains, at least 12 frames before i_c.
+    cand = np.flatnonzero(q_rest - q[: i_c + 1] > 0.35 * span)
+    i_a = int(cand[-1]) if cand.size else 0
+    i_a = max(0, min(i_a, i_c - 12))
+    tw, Qw = t[i_a:], Q[i_a:]
+    t_c = t[i_c] + dt
+    big = 50 * sigma + abs(span)
+    T = max(t_c - tw[0], dt)
+    best = None
+    for lam_init in (1.5, 2.0, 2.7):
+        c_init = (q_rest - Qw[0, 0]) / T ** lam_init
+        p0, lo, hi, scale = [t_c, lam_init], [tw[0] + dt, 1.0], [t[-1] + 5 * dt, 4.0], [dt, 0.1]
+        for j in range(k):
+            rest_j = float(np.median(Q[-5:, j]))
+            c_max = 1e3 * big / min(T, 1.0) ** 4
+            p0 += [rest_j, c_init if j == 0 else 0.0]
+            lo += [rest_j - big, 0.0 if j == 0 else -c_max]
+            hi += [rest_j + big, c_max]
+            scale += [sigma, max(abs(c_init), 1e-12)]
+            if quad:
+                p0 += [0.0]
+                lo += [-c_max]
+                hi += [c_max]
+                scale += [max(abs(c_init), 1e-12)]
+        p0 = np.clip(p0, np.array(lo) + 1e-12, np.array(hi) - 1e-12)
+        try:
+            res = least_squares(lambda p: ((_model(p, tw, k, quad) - Qw) / sigma).ravel(), p0,
+                                bounds=(lo, hi), x_scale=scale)
+        except ValueError:
+            continue
+        if best is None or res.cost < best.cost:
+            best = res
+    if best is None:
+        return None, None, "final-approach fit failed"
+    t_F = float(best.x[0])
+    if np.count_nonzero(t > t_F) < MIN_REST_FRAMES:
+        return None, None, "still moving at the end of the series"
+    t_F_err = None
+    try:
+        J = best.jac
+        s2 = 2.0 * best.cost / max(1, Qw.size - J.shape[1])
+        cov = np.linalg.pinv(J.T @ J) * s2
+        t_F_err = float(np.sqrt(max(cov[0, 0], 0.0)))
+    except (np.linalg.LinAlgError, ValueError):
+        pass
+    return t_F, t_F_err, ""
+
+
+def _first_frame_at(data: pd.DataFrame, t_stop: float | None) -> int | None:
+    if t_stop is None:
+        return None
+    t = data["t"].to_numpy(dtype=float)
+    idx = np.flatnonzero(t >= t_stop - 1e-9)
+    return int(data["frame"].to_numpy()[idx[0]]) if idx.size else None
+
+
+def _translation_coordinate(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Position along and across the direction of the final approach, (N, 2) in m."""
+    r = np.column_stack([x, y])
+    r_rest = np.median(r[-5:], axis=0)
+    d = np.hypot(*(r - r_rest).T)
+    total = d.max()
+    # Direction from where ~35 % of the way remains to the rest point.
+    i_a = int(np.flatnonzero(d > 0.35 * total)[-1]) if total > 0 else 0
+    lo, hi = max(0, i_a - 2), min(len(d), i_a + 3)
+    u = r_rest - r[lo:hi].mean(axis=0)
+    norm = np.hypot(*u)
+    if norm == 0:
+        return np.column_stack([d * 0.0, d * 0.0])
+    u = u / norm
+    d = r - r_rest
+    return np.column_stack([d @ u, d @ np.array([-u[1], u[0]])])
+
+
+def detect_stops(data: pd.DataFrame, fps: float | None = None) -> StopTimes:
+    """Stop times of translation and rotation of a series (contract columns).
+
+    Parameters
+    ----------
+    data : DataFrame
+        Columns ``frame, t, x, y, theta, ok``; rows with ``ok`` = 0 or NaN are ignored.
+    fps : float, optional
+        Frame rate (frames/s); the median frame period of ``t`` when None.
+
+    Returns
+    -------
+    StopTimes
+        ``t_stop_*`` below one frame from a fit of the final approach; None (with a
+        note) when that motion does not end at rest inside the series.
+
+    Examples
+    --------
+    >>> stops = detect_stops(series.data, fps=30.0)      # doctest: +SKIP
+    >>> stops.t_stop_translation, stops.stop_frame_translation  # doctest: +SKIP
+    """
+    ok = (data["ok"].to_numpy() == 1)
+    vals = data[["t", "x", "y", "theta"]].to_numpy(dtype=float)
+    ok &= np.isfinite(vals).all(axis=1)
+    t, x, y, th = vals[ok].T
+    if fps is not None and fps > 0:
+        dt = 1.0 / float(fps)
+    elif t.size > 1:
+        dt = float(np.median(np.diff(t)))
+    else:
+        dt = 1.0 / 30.0
+    out = StopTimes()
+    if t.size < 8:
+        out.notes.append("too few measured frames to detect stops")
+        return out
+    q_tr = _translation_coordinate(x, y)
+    sig_xy = max(noise_sigma(x), noise_sigma(y))
+    t_tr, e_tr, note = fit_final_approach(t, q_tr, dt, sig_xy if sig_xy > 0 else None,
+                                          quad=True)
+    if note:
+        out.notes.append(f"translation: {note}")
+    th_sign = np.sign(np.median(th[-5:]) - np.median(th[:3])) or 1.0
+    t_rot, e_rot, note = fit_final_approach(t, th * th_sign, dt)
+    if note:
+        out.notes.append(f"rotation: {note}")
+    out.t_stop_translation, out.t_stop_translation_err = t_tr, e_tr
+    out.t_stop_rotation, out.t_stop_rotation_err = t_rot, e_rot
+    out.stop_frame_translation = _first_frame_at(data, t_tr)
+    out.stop_frame_rotation = _first_frame_at(data, t_rot)
+    return out
