@@ -1,0 +1,15 @@
+"""Grid calibration: thread lattice -> lens distortion + per-frame image -> ice homography.
+
+Public API::
+
+    calib = calibrate_frame(image_bgr, rig, mask=None)   # Calibration (to_dict/from_dict)
+    tracker = GridTracker(calib, rig)
+    pose = tracker.update(image_bgr, index, mask=None)   # GridPose
+    pose.image_to_ice(pts_px) / pose.ice_to_image(pts_m)
+
+See :mod:`curltrack.calib.grid` for the lattice frame's definition.
+"""
+
+from .grid import Calibration, PlaneMap, calibrate_frame
+
+__all__ = ["Calibration", "PlaneMap", "calibrate_frame"]

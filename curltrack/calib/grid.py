@@ -1,0 +1,287 @@
+"""Calibrate the thread grid on one frame: lattice, lens distortion, homography.
+
+Lattice frame (the reference for position and angle): metres on the ice plane, axes
+along the two thread families, right-handed seen from above (x, y, up).  ``x`` grows
+across the threads that run along ``y`` (spacing ``rig.spacing_x_m``).  When the two
+spacings are equal, ``+y`` is the family closest to the image's up direction in the
+calibration frame.  Origin: a thread crossing near the image centre; with rig colours,
+one whose two threads both have the first colour (so thread ``i`` of either family has
+colour ``colors[i % n]``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import TrackingError
+from .lattice import fit_lattice, initial_lattice, per_line_offsets, periods_px
+from .lens import apply_h, camera_matrix, distort, undistort
+from .response import ColourModel, candidate_pixels, local_contrast, thread_response
+
+
+class PlaneMap:
+    """Mixin: image <-> ice plane through ``self.H`` (undistorted px -> m), ``K``, ``dist``."""
+
+    def image_to_ice(self, pts_px) -> np.ndarray:
+        """Observed pixel coordinates (N, 2) -> ice-plane lattice-frame metres (N, 2)."""
+        p = np.atleast_2d(np.asarray(pts_px, float))
+        return apply_h(self.H, undistort(p, self.K, self.dist))
+
+    def ice_to_image(self, pts_m) -> np.ndarray:
+        """Ice-plane lattice-frame metres (N, 2) -> observed pixel coordinates (N, 2)."""
+        p = np.atleast_2d(np.asarray(pts_m, float))
+        return distort(apply_h(np.linalg.inv(self.H), p), self.K, self.dist)
+
+    def metres_per_px(self, pt_px=None) -> float:
+        """Local scale (m/px) of the ice plane at an image point (default the centre)."""
+        c = self.K[:2, 2] if pt_px is None else np.asarray(pt_px, float)
+        p = np.array([c, c + (1.0, 0.0), c + (0.0, 1.0)])
+        m = self.image_to_ice(p)
+        return float(np.sqrt(abs(np.linalg.det(np.array([m[1] - m[0], m[2] - m[0]])))))
+
+
+@dataclass
+class Calibration(PlaneMap):
+    """The grid found on one frame.
+
+    Attributes
+    ----------
+    width, height : int
+        Image size (px).
+    K : (3, 3) ndarray
+        Camera matrix; ``f`` is a reference scale (max(w, h)) unless known, the principal
+        point is the image centre (see :mod:`curltrack.calib.lens`).
+    dist : tuple
+        OpenCV distortion ``(k1, k2, 0, 0, 0)`` relative to ``K``.
+    H : (3, 3) ndarray
+        Undistorted px -> lattice-frame metres on this frame.
+    spacing_x_m, spacing_y_m : float
+        Thread spacings (m).
+    spacing_px : float
+        Mean thread spacing at the image centre (px).
+    n_threads : (int, int)
+        Threads fitted (x family, y family).
+    residual_px : float
+        RMS offset of the individual threads from the fitted lattice (px).
+    colour_model : ColourModel
+    colors_resolved : bool
+        Whether the thread colour sequence was identified (fixes the cell index modulo
+        the number of colours).
+    thread_width_px : float
+        Weighted RMS width of thread pixels about their line (px).
+    camera_height_m : float or None
+        Not derivable from one frame without a known focal length: None, with a note.
+    notes : list of str
+    """
+
+    width: int
+    height: int
+    K: np.ndarray
+    dist: tuple
+    H: np.ndarray
+    spacing_x_m: float
+    spacing_y_m: float
+    spacing_px: float
+    n_threads: tuple
+    residual_px: float
+    colour_model: ColourModel
+    colors_resolved: bool = False
+    n_colors: int = 0
+    thread_width_px: float = 1.0
+    camera_height_m: float | None = None
+    notes: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict (CALIB.json)."""
+        return {
+            "image_width": self.width, "image_height": self.height,
+            "camera_matrix": self.K.tolist(), "dist_coeffs": list(self.dist),
+            "k1": self.dist[0], "k2": self.dist[1],
+            "homography_image_to_ice": self.H.tolist(),
+            "homography_note": "undistorted px -> lattice-frame metres on the ice plane",
+            "spacing_x_m": self.spacing_x_m, "spacing_y_m": self.spacing_y_m,
+            "spacing_px": self.spacing_px, "n_threads": list(self.n_threads),
+            "residual_px": self.residual_px, "thread_width_px": self.thread_width_px,
+            "colour_model": self.colour_model.to_dict(),
+            "colors_resolved": self.colors_resolved, "n_colors": self.n_colors,
+            "camera_height_m": self.camera_height_m, "notes": list(self.notes),
+        }
+
+    @classmethod
+    def from_dict(cls, d) -> "Calibration":
+        return cls(width=int(d["image_width"]), height=int(d["image_height"]),
+                   K=np.asarray(d["camera_matrix"], float), dist=tuple(d["dist_coeffs"]),
+                   H=np.asarray(d["homography_image_to_ice"], float),
+                   spacing_x_m=float(d["spacing_x_m"]), spacing_y_m=float(d["spacing_y_m"]),
+                   spacing_px=float(d["spacing_px"]), n_threads=tuple(d["n_threads"]),
+                   residual_px=float(d["residual_px"]),
+                   colour_model=ColourModel.from_dict(d["colour_model"]),
+                   colors_resolved=bool(d.get("colors_resolved", False)),
+                   n_colors=int(d.get("n_colors", 0)),
+                   thread_width_px=float(d.get("thread_width_px", 1.0)),
+                   camera_height_m=d.get("camera_height_m"), notes=list(d.get("notes", [])))
+
+
+def _rig_colours(rig):
+    from ..rig import parse_color
+
+    return [parse_color(c) for c in rig.grid_colors]
+
+
+def line_colours(contrast, xs, ab, fam, idx, col, model: ColourModel):
+    """Best-matching rig colour index of each thread: {index: colour index}."""
+    if model.directions is None or not fam.any():
+        return {}
+    xi = xs[fam].astype(int)
+    vec = contrast[xi[:, 1], xi[:, 0]]  # (n, 3) contrast of the thread pixels
+    score = vec @ model.directions.T  # (n, k)
+    ids, inv = np.unique(idx[fam], return_inverse=True)
+    out = {}
+    for j, i in enumerate(ids):
+        s = score[inv == j].sum(axis=0)
+        out[int(i)] = int(np.argmax(s))
+    return out
+
+
+def colour_phase(colours: dict, n: int):
+    """Phase p (thread i has colour (i - p) mod n) and the fraction of threads agreeing."""
+    if n < 2 or len(colours) < 2:
+        return 0, 0.0
+    ids = np.array(list(colours)), np.array(list(colours.values()))
+    agree = [np.mean((ids[0] - p) % n == ids[1]) for p in range(n)]
+    p = int(np.argmax(agree))
+    return p, float(agree[p])
+
+
+def _check_period(xs, w, Hc, K, dist, family: int):
+    """Thread response half-way between fitted threads of a family -> the period was 2x."""
+    f, c = K[0, 0], K[:2, 2]
+    ab = apply_h(Hc, (undistort(xs, K, dist) - c) / f)
+    frac = ab[:, family] - np.floor(ab[:, family])
+    on = np.sum(w[(frac < 0.08) | (frac > 0.92)])
+    mid = np.sum(w[np.abs(frac - 0.5) < 0.08])
+    return mid > 0.35 * on
+
+
+def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
+    """Find the thread lattice on one frame.
+
+    Parameters
+    ----------
+    image_bgr : (H, W, 3) uint8
+    rig : Rig
+        Thread spacings and (optional) colours.
+    mask : (H, W) uint8, optional
+        Nonzero = ignore (e.g. the rock and a broom).
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    TrackingError
+        "no grid found" when fewer than two periodic thread families are visible or the
+        fit does not hold together.
+    """
+    img = np.asarray(image_bgr)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise TrackingError(f"expected a BGR uint8 image, got {img.dtype} {img.shape}")
+    h, w = img.shape[:2]
+    K = camera_matrix(w, h)
+    f, c = K[0, 0], K[:2, 2]
+    model = ColourModel.from_image(img, _rig_colours(rig), mask)
+    contrast = local_contrast(img)
+    resp = thread_response(img, model, contrast)
+    if mask is not None:
+        resp = np.where(mask == 0, resp, 0).astype(np.float32)
+    xs, wt = candidate_pixels(resp, mask)
+    if len(xs) < 200:
+        raise TrackingError("no grid found: almost no thread-like pixels in the frame")
+    A = initial_lattice(resp, xs, wt, c)
+    if A is None:
+        raise TrackingError("no grid found: no two periodic thread families in the frame")
+    Hc = np.array([[A[0, 0] * f, A[0, 1] * f, A[0, 2]], [A[1, 0] * f, A[1, 1] * f, A[1, 2]],
+                   [0.0, 0.0, 1.0]])
+    half_diag = np.hypot(w, h) / 2
+    radii = [0.3 * half_diag, 0.5 * half_diag, 0.7 * half_diag, 0.85 * half_diag, None]
+    dist = (0.0, 0.0)
+    for _attempt in range(3):
+        Hc, dist, info = fit_lattice(xs, wt, Hc, K, dist, free_dist=1, radii=radii,
+                                     band_px=3.0)
+        halved = False
+        for fam in (0, 1):
+            if _check_period(xs, wt, Hc, K, dist, fam):
+                Hc[fam] *= 2.0  # the spectrum picked a sub-harmonic: threads every half cell
+                halved = True
+        if not halved:
+            break
+        radii = [0.5 * half_diag, None]
+    Hc, dist, info = fit_lattice(xs, wt, Hc, K, dist, free_dist=2, radii=(None,), band_px=2.5,
+                                 iterations=5)
+    if not info or info["lines_a"] < 3 or info["lines_b"] < 3:
+        raise TrackingError("no grid found: fewer than 3 threads in a family could be fitted")
+    return _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info)
+
+
+def _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info) -> Calibration:
+    """Choose the lattice axes, signs and origin; express the homography in metres."""
+    h, w = img.shape[:2]
+    f, c = K[0, 0], K[:2, 2]
+    pa, pb = periods_px(Hc, f)
+    J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])  # d(a, b)/dq at the centre
+    sx, sy = rig.spacing_x_m, rig.spacing_y_m
+    notes = []
+    if abs(sx - sy) / max(sx, sy) > 0.08:
+        # Spacings differ: the family with the larger px period has the larger spacing.
+        x_is_a = (pa > pb) == (sx > sy)
+    else:
+        # Equal spacings: y is the family whose gradient is closest to the image vertical.
+        x_is_a = abs(J[1, 1]) / np.linalg.norm(J[1]) > abs(J[0, 1]) / np.linalg.norm(J[0])
+    P = np.eye(3) if x_is_a else np.array([[0.0, 1, 0], [1, 0, 0], [0, 0, 1]])
+    Hc = P @ Hc
+    J = P[:2, :2] @ J
+    # +y grows towards the image's up (-y_img); then x by right-handedness
+    sgn_y = -1.0 if J[1, 1] > 0 else 1.0
+    Jy = sgn_y * J[1]
+    sgn_x = 1.0 if (J[0, 0] * Jy[1] - J[0, 1] * Jy[0]) < 0 else -1.0
+    Hc = np.diag([sgn_x, sgn_y, 1.0]) @ Hc
+    # Colours of the threads and the origin crossing.
+    q = (undistort(xs, K, dist) - c) / f
+    ab = apply_h(Hc, q)
+    lines = per_line_offsets(xs, wt, Hc, K, dist)
+    from .lattice import _assign
+
+    pa, pb = periods_px(Hc, f)
+    fam_a, fam_b, ia, ib = _assign(ab[:, 0], ab[:, 1], pa, pb, 2.5, 3.5)
+    n = len(rig.grid_colors)
+    resolved = False
+    ab0 = apply_h(Hc, np.zeros((1, 2)))[0]
+    shift = np.round(ab0)
+    if model.directions is not None and n >= 2:
+        ca = line_colours(contrast, xs, ab, fam_a, ia, 0, model)
+        cb = line_colours(contrast, xs, ab, fam_b, ib, 1, model)
+        (p_a, agree_a), (p_b, agree_b) = colour_phase(ca, n), colour_phase(cb, n)
+        resolved = min(agree_a, agree_b) >= 0.8 and min(len(ca), len(cb)) >= n + 1
+        if resolved:
+            # origin index congruent to the phase, nearest the image centre
+            shift = np.array([p_a + n * np.round((ab0[0] - p_a) / n),
+                              p_b + n * np.round((ab0[1] - p_b) / n)])
+        else:
+            notes.append(f"thread colour sequence not identified (agreement "
+                         f"{agree_a:.2f}, {agree_b:.2f}): cell index modulo {n} from motion only")
+    D = np.array([[sx, 0.0, -sx * shift[0]], [0.0, sy, -sy * shift[1]], [0.0, 0.0, 1.0]])
+    N = np.array([[1 / f, 0, -c[0] / f], [0, 1 / f, -c[1] / f], [0, 0, 1.0]])
+    H = D @ Hc @ N
+    H /= H[2, 2]
+    notes.append("camera_height_m: not derivable from the grid alone (focal length unknown); "
+                 "track estimates it from the marker layout")
+    return Calibration(
+        width=w, height=h, K=K, dist=(float(dist[0]), float(dist[1]), 0.0, 0.0, 0.0), H=H,
+        spacing_x_m=sx, spacing_y_m=sy, spacing_px=float(np.sqrt(pa * pb)),
+        n_threads=(info["lines_a"], info["lines_b"]) if x_is_a else (info["lines_b"],
+                                                                      info["lines_a"]),
+        residual_px=lines["rms_px"], colour_model=model, colors_resolved=bool(resolved),
+        n_colors=n, thread_width_px=float(info["rms_px"]), notes=notes)

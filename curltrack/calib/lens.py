@@ -1,0 +1,64 @@
+"""Radial lens distortion in OpenCV's convention, vectorised.
+
+Pixel coordinates: origin at the centre of the top-left pixel, x to the right, y down.
+A camera matrix ``K = [[f, 0, cx], [0, f, cy], [0, 0, 1]]`` (px) and coefficients
+``dist = (k1, k2, p1, p2, k3)`` (only k1, k2 used here; p1 = p2 = k3 = 0) map an
+undistorted normalised point ``q = (x_u - c) / f`` to the distorted pixel
+``c + f q (1 + k1 r^2 + k2 r^4)``, ``r = |q|``, exactly as ``cv2.projectPoints`` does, so
+``cv2.undistortPoints(p, K, dist, P=K)`` inverts :func:`distort` too.
+
+When the focal length is not known, ``f`` is a reference scale (``max(width, height)``):
+the pixel-to-pixel mapping depends only on ``k1 / f^2`` and ``k2 / f^4``, so a true
+``k1_true`` with focal length ``f_true`` equals ``k1_true * (f / f_true)^2`` here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def camera_matrix(width: int, height: int, f: float | None = None) -> np.ndarray:
+    """K with the principal point at the image centre and ``f`` (px; default max(w, h))."""
+    f = float(max(width, height) if f is None else f)
+    return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0],
+                     [0.0, 0.0, 1.0]])
+
+
+def distort(pts_px, K, dist) -> np.ndarray:
+    """Undistorted pixel coordinates (N, 2) -> distorted (observed) pixel coordinates."""
+    p = np.asarray(pts_px, float)
+    k1, k2 = (tuple(dist) + (0.0, 0.0))[:2]
+    f, cx, cy = K[0, 0], K[0, 2], K[1, 2]
+    qx, qy = (p[..., 0] - cx) / f, (p[..., 1] - cy) / f
+    r2 = qx * qx + qy * qy
+    s = f * (1.0 + r2 * (k1 + k2 * r2))
+    return np.stack([cx + qx * s, cy + qy * s], axis=-1)
+
+
+def undistort(pts_px, K, dist, iterations: int = 8) -> np.ndarray:
+    """Distorted (observed) pixel coordinates (N, 2) -> undistorted pixel coordinates.
+
+    Fixed-point inversion of :func:`distort`; converges to < 1e-6 px for the distortion of
+    ordinary lenses (|displacement| up to tens of pixels).
+    """
+    p = np.asarray(pts_px, float)
+    k1, k2 = (tuple(dist) + (0.0, 0.0))[:2]
+    if k1 == 0.0 and k2 == 0.0:
+        return p.copy()
+    f, cx, cy = K[0, 0], K[0, 2], K[1, 2]
+    dx, dy = (p[..., 0] - cx) / f, (p[..., 1] - cy) / f
+    qx, qy = dx, dy
+    for _ in range(iterations):
+        r2 = qx * qx + qy * qy
+        s = 1.0 / (1.0 + r2 * (k1 + k2 * r2))
+        qx, qy = dx * s, dy * s
+    return np.stack([cx + f * qx, cy + f * qy], axis=-1)
+
+
+def apply_h(H, pts) -> np.ndarray:
+    """Apply a 3x3 homography to (N, 2) points."""
+    p = np.asarray(pts, float)
+    x, y = p[..., 0], p[..., 1]
+    w = H[2, 0] * x + H[2, 1] * y + H[2, 2]
+    return np.stack([(H[0, 0] * x + H[0, 1] * y + H[0, 2]) / w,
+                     (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / w], axis=-1)

@@ -1,0 +1,243 @@
+"""Stream video frames with exact indices and times; check the file up front.
+
+Conventions
+-----------
+* ``Frame.index`` is the 0-based index of the frame in the file (decode order).
+* ``Frame.t`` (s) is the frame's presentation time from the container's timestamps,
+  relative to the first frame yielded at index ``start`` (so 29.97 fps and variable
+  frame rates are honoured).  With an fps override (the rig's ``[camera].fps``) the time
+  is ``(index - start) / fps`` instead.
+* ``Frame.image`` is BGR uint8, shape (height, width, 3).
+
+Still images (PNG, JPEG, ...) are accepted by :func:`read_frame` so that ``calibrate``
+works on a single photograph.
+
+Frames are decoded one at a time; no function here holds more than one frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import VideoError
+
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
+
+
+@dataclass(frozen=True)
+class VideoInfo:
+    """What the container says about a video (checked by :func:`probe_video`).
+
+    Attributes
+    ----------
+    path : str
+    n_frames : int
+        Number of frames.
+    fps : float
+        Frames per second (the override when one was given, else the container's).
+    width, height : int
+        Frame size (px).
+    codec : str
+        FourCC code (e.g. ``"avc1"``, ``"FMP4"``).
+    duration_s : float
+        ``n_frames / fps``.
+    """
+
+    path: str
+    n_frames: int
+    fps: float
+    width: int
+    height: int
+    codec: str
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One decoded frame: ``index`` (0-based in the file), ``t`` (s), ``image`` (BGR uint8)."""
+
+    index: int
+    t: float
+    image: np.ndarray
+
+
+def _open(path):
+    import cv2
+
+    p = Path(path)
+    if not p.exists():
+        raise VideoError("no such file", path=p)
+    if p.is_dir():
+        raise VideoError("is a directory, expected a video file", path=p)
+    if p.stat().st_size == 0:
+        raise VideoError("file is empty", path=p)
+    cap = cv2.VideoCapture(str(p))
+    if not cap.isOpened():
+        cap.release()
+        raise VideoError("cannot open as a video (unknown format or corrupt container)", path=p)
+    return cap
+
+
+def probe_video(path, fps_override: float | None = None, check_end: bool = True) -> VideoInfo:
+    """Open a video and check codec, frame count, frame size and fps up front.
+
+    Parameters
+    ----------
+    path : str or Path
+    fps_override : float, optional
+        Frames per second to use instead of the container's (rig ``[camera].fps``).
+    check_end : bool
+        Also decode the last frame, so a truncated file is reported here rather than
+        halfway through tracking.
+
+    Returns
+    -------
+    VideoInfo
+
+    Raises
+    ------
+    VideoError
+        File missing, empty, not a video, zero frames, no frame rate, undecodable or
+        truncated; the message names the file.
+    """
+    import cv2
+
+    cap = _open(path)
+    try:
+        n = int(round(cap.get(cv2.CAP_PROP_FRAME_COUNT)))
+        fps = float(cap.get(cv2.CAP_PROP_FPS))
+        w = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH))
+        h = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        fourcc = int(cap.get(cv2.CAP_PROP_FOURCC))
+        codec = "".join(chr((fourcc >> (8 * i)) & 0xFF) for i in range(4)).strip("\x00 ")
+        if n <= 0:
+            raise VideoError("video has no frames (empty or unreadable stream)", path=path)
+        if w <= 0 or h <= 0:
+            raise VideoError(f"invalid frame size {w}x{h}", path=path)
+        ok, img = cap.read()
+        if not ok or img is None:
+            raise VideoError(f"cannot decode the first frame (codec {codec or '?'})",
+                             path=path, where="frame 0")
+        if fps_override is not None:
+            if not np.isfinite(fps_override) or fps_override <= 0:
+                raise VideoError(f"invalid fps override {fps_override!r}", path=path)
+            fps = float(fps_override)
+        elif not np.isfinite(fps) or fps <= 0 or fps > 1000:
+            raise VideoError(f"container gives no usable frame rate ({fps!r}); set "
+                             "[camera].fps in the rig", path=path)
+        if check_end and n > 1:
+            cap.set(cv2.CAP_PROP_POS_FRAMES, n - 1)
+            ok, img = cap.read()
+            if not ok or img is None:
+                raise VideoError(f"video is truncated: the container announces {n} frames "
+                                 "but the last one cannot be decoded", path=path,
+                                 where=f"frame {n - 1}")
+    finally:
+        cap.release()
+    return VideoInfo(str(path), n, fps, w, h, codec, n / fps)
+
+
+def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
+                fps_override: float | None = None):
+    """Yield :class:`Frame` objects one at a time, from ``start`` up to ``end`` (exclusive).
+
+    Parameters
+    ----------
+    path : str or Path
+    start : int
+        First frame to yield (0-based index in the file); frames before it are skipped
+        without being converted.
+    end : int, optional
+        Stop before this frame index (default: the end of the video).
+    exclude : iterable of int
+        Frame indices to skip (not yielded; the caller decides whether to record them).
+    fps_override : float, optional
+        Use ``(index - start) / fps_override`` as the time instead of the container's
+        timestamps.
+
+    Raises
+    ------
+    VideoError
+        If the file cannot be opened, ``start``/``end`` are out of range, or decoding
+        stops before the announced end (truncated file); names the file and frame.
+    """
+    import cv2
+
+    start = int(start)
+    if start < 0:
+        raise VideoError(f"start frame {start} is negative", path=path)
+    if end is not None and int(end) <= start:
+        raise VideoError(f"end frame {end} is not after start frame {start}", path=path)
+    exclude = {int(i) for i in exclude}
+    cap = _open(path)
+    try:
+        n = int(round(cap.get(cv2.CAP_PROP_FRAME_COUNT)))
+        fps = float(cap.get(cv2.CAP_PROP_FPS))
+        if n > 0 and start >= n:
+            raise VideoError(f"start frame {start} is beyond the last frame ({n - 1})",
+                             path=path)
+        stop = n if end is None else min(int(end), n) if n > 0 else int(end)
+        t0_ms = None
+        prev_ms = -np.inf
+        index = 0
+        while stop <= 0 or index < stop:
+            if index < start or index in exclude:
+                ok = cap.grab()
+                ms = cap.get(cv2.CAP_PROP_POS_MSEC)
+                img = None
+            else:
+                ok, img = cap.read()
+                ms = cap.get(cv2.CAP_PROP_POS_MSEC)
+            if not ok:
+                if stop > 0 and index < stop:
+                    raise VideoError(f"video is truncated or corrupt: decoding stopped at "
+                                     f"frame {index} of {n}", path=path, where=f"frame {index}")
+                break
+            # Container timestamps where meaningful (strictly increasing); else index/fps.
+            if not np.isfinite(ms) or ms <= prev_ms:
+                ms = prev_ms + 1000.0 / fps if np.isfinite(prev_ms) else index * 1000.0 / fps
+            prev_ms = ms
+            if index == start:
+                t0_ms = ms
+            if img is not None:
+                if fps_override is not None:
+                    t = (index - start) / float(fps_override)
+                else:
+                    t = (ms - t0_ms) / 1000.0
+                yield Frame(index, float(t), img)
+            index += 1
+    finally:
+        cap.release()
+
+
+def read_frame(path, index: int = 0) -> np.ndarray:
+    """Return one frame (BGR uint8) of a video, or the image itself for a still image.
+
+    Raises
+    ------
+    VideoError
+        If the file cannot be read or ``index`` is out of range.
+    """
+    import cv2
+
+    p = Path(path)
+    if p.suffix.lower() in IMAGE_SUFFIXES:
+        if not p.exists():
+            raise VideoError("no such file", path=p)
+        img = cv2.imread(str(p), cv2.IMREAD_COLOR)
+        if img is None:
+            raise VideoError("cannot read as an image", path=p)
+        if index not in (0, None):
+            raise VideoError(f"frame {index} requested but a still image has only frame 0",
+                             path=p)
+        return img
+    info = probe_video(p, check_end=False)
+    if not 0 <= index < info.n_frames:
+        raise VideoError(f"frame {index} is out of range (video has {info.n_frames} frames)",
+                         path=p)
+    for fr in iter_frames(p, start=index, end=index + 1):
+        return fr.image
+    raise VideoError("cannot decode frame", path=p, where=f"frame {index}")
