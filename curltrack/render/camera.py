@@ -1,0 +1,126 @@
+"""Pinhole camera with radial lens distortion, and the camera paths of a recording.
+
+Conventions
+-----------
+World ("ice") frame: X, Y on the ice surface along the rig's thread lattice (X across the
+rink, Y along it), Z up, metres; right-handed.  Camera frame: x right in the image, y down
+in the image, z along the optical axis (looking down at the ice).  Pixel coordinates
+``(u, v)``: u to the right, v down, the *centre* of pixel (0, 0) at (0, 0) (OpenCV).
+
+Projection of a world point ``P``::
+
+    p_c = R (P - C);  x = p_c[0]/p_c[2];  y = p_c[1]/p_c[2];  r2 = x^2 + y^2
+    d = 1 + k1 r2 + k2 r2^2;  u = f x d + cx;  v = f y d + cy
+
+(``k1 < 0`` is barrel distortion).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ParameterError
+
+
+def rotation_matrix(rvec) -> np.ndarray:
+    """Rotation matrix of a rotation vector (axis * angle, rad), Rodrigues' formula."""
+    rvec = np.asarray(rvec, dtype=float)
+    theta = float(np.linalg.norm(rvec))
+    if theta < 1e-15:
+        return np.eye(3)
+    k = rvec / theta
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * K @ K
+
+
+def base_rotation(yaw_rad: float) -> np.ndarray:
+    """World -> camera rotation of a camera looking straight down.
+
+    ``yaw_rad`` is the world direction of the image's +u (right) axis, counter-clockwise
+    from world +X seen from above.
+    """
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    return np.array([[c, s, 0.0], [s, -c, 0.0], [0.0, 0.0, -1.0]])
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera with radial distortion at one pose.
+
+    Parameters
+    ----------
+    f_px : float
+        Focal length (px).
+    cx, cy : float
+        Principal point (px, pixel-centre convention).
+    width, height : int
+        Image size (px).
+    R : (3, 3) array
+        World -> camera rotation.
+    C : (3,) array
+        Camera centre in the world (m); ``C[2]`` is the lens height above the ice.
+    k1, k2 : float
+        Radial distortion coefficients (of r^2 and r^4, r in focal-length units).
+    """
+
+    f_px: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+    R: np.ndarray = field(default_factory=lambda: np.eye(3))
+    C: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 2.0]))
+    k1: float = 0.0
+    k2: float = 0.0
+
+    @property
+    def K(self) -> np.ndarray:
+        """Intrinsic matrix (px)."""
+        return np.array([[self.f_px, 0, self.cx], [0, self.f_px, self.cy], [0, 0, 1.0]])
+
+    def to_camera(self, points) -> np.ndarray:
+        """World points (N, 3) (m) -> camera-frame points (N, 3) (m)."""
+        P = np.atleast_2d(np.asarray(points, dtype=float))
+        return (P - np.asarray(self.C)) @ np.asarray(self.R).T
+
+    def normalized(self, points) -> np.ndarray:
+        """World points (N, 3) -> undistorted normalised image coordinates (N, 2)."""
+        pc = self.to_camera(points)
+        if (pc[:, 2] <= 0).any():
+            raise ParameterError("a point lies behind the camera")
+        return pc[:, :2] / pc[:, 2:3]
+
+    def distort(self, xy) -> np.ndarray:
+        """Undistorted normalised coordinates (N, 2) -> distorted normalised (N, 2)."""
+        xy = np.asarray(xy, dtype=float)
+        r2 = (xy**2).sum(axis=-1, keepdims=True)
+        return xy * (1.0 + self.k1 * r2 + self.k2 * r2**2)
+
+    def undistort(self, xy_d, iterations: int = 20) -> np.ndarray:
+        """Distorted normalised coordinates -> undistorted (fixed-point iteration)."""
+        xy_d = np.asarray(xy_d, dtype=float)
+        xy = xy_d.copy()
+        for _ in range(iterations):
+            r2 = (xy**2).sum(axis=-1, keepdims=True)
+            xy = xy_d / (1.0 + self.k1 * r2 + self.k2 * r2**2)
+        return xy
+
+    def project(self, points) -> np.ndarray:
+        """World points (N, 3) (m) -> distorted pixel coordinates (N, 2) (px)."""
+        xy = self.distort(self.normalized(points))
+        return xy * self.f_px + np.array([self.cx, self.cy])
+
+    def plane_homography(self, z_m: float) -> np.ndarray:
+        """3x3 homography from (X, Y, 1) on the plane Z = ``z_m`` to *undistorted* px."""
+        R = np.asarray(self.R)
+        t = -R @ np.asarray(self.C)
+        M = np.column_stack([R[:, 0], R[:, 1], R[:, 2] * z_m + t])
+        return self.K @ M
+
+    def in_image(self, uv, margin: float = 0.0) -> np.ndarray:
+        """Boolean mask: pixel positions inside the image (by ``margin`` px)."""
+        uv = np.atleast_2d(uv)
+        return ((uv[:, 0] >= -0.5 + margin) & (uv[:, 0] <= self.width - 0.5 - margin)
+                & (uv[:, 1] >= -0.5 + margin) & (uv[:, 1] <= self.height - 0.5 - margin))
