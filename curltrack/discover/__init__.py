@@ -1,0 +1,122 @@
+"""Discovery: what the simulation gets wrong, its named cause, the extended model, the gain.
+
+Pipeline (one module per step):
+
+* :mod:`.shots`      -- measured rows, stop times, starting values; :mod:`.noise` --
+  the measurement noise (sigma and AR(1) correlation) of every coordinate, from the data;
+* :mod:`.model`      -- the baseline (the paper's model, or ``dry`` with phi = 0) fitted
+  jointly to all shots with :func:`curltrack.physics.simulate`;
+* :mod:`.residuals`  -- structure tests on the baseline's whitened residuals;
+* :mod:`.candidates` -- the nested extensions (the simulator's effect terms);
+* :mod:`.search`, :mod:`.scoring` -- delta-BIC, look-elsewhere-calibrated thresholds
+  (parametric block bootstrap), blocked and leave-one-shot-out cross-validation;
+* :mod:`.report`     -- REPORT.json and the figure.
+
+Decision rule
+-------------
+A candidate is *supported* when its delta-BIC exceeds both 0 and its bootstrap threshold
+(false-alarm level :data:`scoring.CANDIDATE_LEVEL` each) and it predicts held-out data
+better than the baseline.  The verdict names the supported candidate with the largest
+delta-BIC if its residuals then look like noise (no structure test significant at the
+family-wise level :data:`residuals.STRUCTURE_LEVEL`); otherwise ``unexplained``.  With no
+supported candidate: ``unexplained`` if the baseline residuals are structured, else
+``none``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from . import scoring
+from .candidates import build_candidates
+from .model import JointModel
+from .residuals import structure_tests
+from .search import folds_shot, folds_time, heldout, score_candidate, segments_of
+from .shots import shot_from_series
+
+__all__ = ["discover", "write_report"]
+
+
+def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
+             n_boot: int = scoring.N_BOOT, effects=None) -> dict:
+    """Find what the baseline model gets wrong in one or more measured shots.
+
+    Parameters
+    ----------
+    series : Series, path, or list of them
+        The shots (SHOT.csv/.parquet paths or :class:`curltrack.series.Series`).  Shots of
+        one session share the ice (friction law, a_T); per shot: initial speed and spin,
+        and the offsets of the measured frame.
+    baseline : {"paper", "dry"}
+        The paper's model (mu = alpha v^phi per channel) or dry friction (phi = 0).
+    rig : Rig, optional
+        R and r of the rock (contract defaults).
+    seed : int
+        Seed of the bootstrap (the result is reproducible).
+    n_boot : int
+        Bootstrap replicates per candidate.
+    effects : list of str, optional
+        Restrict the candidates to these names.
+
+    Returns
+    -------
+    dict
+        The REPORT.json content (see the contract): ``baseline``, ``findings`` sorted by
+        ``delta_bic``, ``verdict``, plus ``noise``, ``structure_before``, ``unexplained``
+        and ``warnings``.  Private keys starting with ``_`` carry the fitted objects for
+        the plot and are not serialised.
+
+    Raises
+    ------
+    CurltrackError
+        Unreadable or unusable input (one line naming the file and field).
+    """
+    from ..series import Series, read_series
+
+    if baseline not in ("paper", "dry"):
+        raise InputError(f"unknown baseline {baseline!r}; expected 'paper' or 'dry'",
+                         where="--baseline")
+    items = series if isinstance(series, (list, tuple)) else [series]
+    if not items:
+        raise InputError("no shots given")
+    sers = [s if isinstance(s, Series) else read_series(Path(s)) for s in items]
+    shots = [shot_from_series(s) for s in sers]
+    names = ", ".join(s.name for s in sers)
+    rng = np.random.default_rng(seed)
+
+    base = JointModel(shots, baseline, rig=rig)
+    fit0 = base.fit(max_nfev=80, name=names)
+    seg_slices = [sl for _, _, sl in base.segments]
+    before = structure_tests(segments_of(base, fit0))
+    f_time = folds_time(base)
+    f_shot = folds_shot(base) if len(shots) > 1 else None
+    h0 = heldout(fit0, f_time, base)
+    h0_loso = heldout(fit0, f_shot, base) if f_shot is not None else None
+
+    cands = build_candidates(shots, baseline)
+    if effects:
+        cands = [c for c in cands if c.name in set(effects)]
+    scores = []
+    for cand in cands:
+        sc = score_candidate(base, fit0, cand, seg_slices, rng, n_boot=n_boot, name=names)
+        if sc.fit is not None:
+            sc.heldout = {"time": heldout(sc.fit, f_time, base)}
+            if f_shot is not None:
+                sc.heldout["shot"] = heldout(sc.fit, f_shot, base)
+        scores.append(sc)
+
+    from .report import build_report
+
+    return build_report(shots, base, fit0, before, h0, h0_loso, scores)
+
+
+def write_report(report: dict, path, plot=None) -> None:
+    """Write REPORT.json (and the figure) atomically."""
+    from .report import plot_report, write_json_report
+
+    write_json_report(report, path)
+    if plot is not None:
+        plot_report(report, plot)

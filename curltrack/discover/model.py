@@ -1,0 +1,328 @@
+"""The joint model of all given shots: the simulator, its parameters, and the fit.
+
+Parameters (SI units):
+
+* shared by the shots (one sheet of ice): ``phi_y``, ``alpha_y`` (translation friction
+  mu = alpha v^phi, alpha in (m/s)^-phi), ``phi_theta``, ``alpha_theta`` (rotation),
+  ``a_T`` (m/s^2, the size of the transverse acceleration; its direction follows the
+  spin, so shots of opposite spin curl to opposite sides);
+* per shot ``i``: ``v0[i]`` (m/s), ``omega0[i]`` (rad/s, > 0 counter-clockwise), and the
+  nuisance offsets of the measured frame ``x0[i]``, ``y0[i]`` (m), ``theta0[i]`` (rad)
+  and ``skew[i]`` (rad; data = offset + Rot(skew) (simulated x, y), as in
+  :mod:`curltrack.fit`) -- the contract's origin and axes are themselves estimates;
+* the candidate's effect parameters.
+
+The forward model is :func:`curltrack.physics.simulate`; nothing here is physics.
+Residuals are divided by each row's noise and AR(1)-whitened per (shot, coordinate), so
+the fit is weighted least squares under the noise model estimated from the data.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..errors import FitError
+from ..rig import default_rig
+from .candidates import Candidate, effects_for
+from .noise import whiten_matrix_apply
+from .shots import COORDS
+
+SHARED = ("phi_y", "alpha_y", "phi_theta", "alpha_theta", "a_T")
+PER_SHOT = ("v0", "omega0", "x0", "y0", "theta0", "skew")
+
+#: (lower, upper, finite-difference step) of every model parameter
+_BOUNDS = {
+    "phi_y": (-3.0, 0.9, 1e-4), "phi_theta": (-3.0, 0.9, 1e-4),
+    "alpha_y": (1e-6, 5.0, None), "alpha_theta": (1e-6, 5.0, None),
+    "a_T": (0.0, 1.0, 2e-6),
+    "v0": (0.0, 20.0, 1e-5), "omega0": (-60.0, 60.0, 1e-5),
+    "x0": (-1.0, 1.0, 1e-5), "y0": (-1.0, 1.0, 1e-5), "theta0": (-1.0, 1.0, 1e-5),
+    "skew": (-0.5, 0.5, 1e-5),
+    "slope_x_mm_per_m": (None, None, 1e-3), "slope_y_mm_per_m": (None, None, 1e-3),
+    "factor": (None, None, 1e-4), "y_start_m": (None, None, 1e-3), "y_end_m": (None, None, 1e-3),
+    "k": (None, None, 1e-4), "t_s": (None, None, 1e-3),
+    "dvx_m_per_s": (None, None, 1e-5), "dvy_m_per_s": (None, None, 1e-5),
+    "domega_rad_per_s": (None, None, 1e-4),
+}
+
+
+def _base(name: str) -> str:
+    return name.split("[")[0]
+
+
+def _shot_of(name: str):
+    return int(name[name.index("[") + 1:-1]) if "[" in name else None
+
+
+@dataclass
+class FitOut:
+    """A fitted joint model (lmfit-like): values, errors, chi-square, Jacobian.
+
+    Attributes
+    ----------
+    values : dict
+        All parameter values (free and fixed), per-shot ones as ``"v0[0]"``.
+    free : list of str
+        The fitted parameters, in the order of ``cov`` and ``J``.
+    cov : (p, p) array
+        Covariance of the free parameters (scaled by the reduced chi-square if > 1).
+    chi2 : float
+        Sum of squared whitened residuals.
+    n : int
+        Number of data points.
+    r, J : arrays
+        Whitened residuals (data - model) and whitened d(model)/d(free) at the fit.
+    r_raw, J_raw : arrays
+        The same in physical units (m, rad), unweighted.
+    predictions : list of dict
+        Per shot, model ``x``, ``y``, ``theta`` at the shot's rows.
+    """
+
+    values: dict
+    free: list
+    cov: np.ndarray
+    chi2: float
+    n: int
+    r: np.ndarray
+    J: np.ndarray
+    r_raw: np.ndarray
+    J_raw: np.ndarray
+    predictions: list
+    success: bool
+    message: str
+
+    @property
+    def k(self) -> int:
+        return len(self.free)
+
+    def err(self, name: str) -> float:
+        i = self.free.index(name) if name in self.free else None
+        return float(np.sqrt(max(self.cov[i, i], 0.0))) if i is not None else 0.0
+
+
+class JointModel:
+    """Baseline (+ one candidate) over all shots.
+
+    Parameters
+    ----------
+    shots : list of ShotData
+    baseline : {"paper", "dry"}
+        ``dry`` holds ``phi_y`` and ``phi_theta`` at 0.
+    cand : Candidate, optional
+    rig : Rig, optional
+        Supplies R and r of the rock.
+    """
+
+    def __init__(self, shots, baseline: str = "paper", cand: Candidate | None = None, rig=None):
+        from ..physics import ShotModel, simulate
+
+        self._ShotModel, self._simulate = ShotModel, simulate
+        rig = rig or default_rig()
+        self.R, self.r_band = rig.inertia_radius_m, rig.band_radius_m
+        self.shots, self.baseline, self.cand = shots, baseline, cand
+        self.values: dict = {}
+        self.bounds: dict = {}
+        self.free: list = []
+        trans = any(s.translates for s in shots)
+        spin = any(s.spins for s in shots)
+        st0 = shots[0].start
+        for name in SHARED:
+            self.values[name] = float(np.median([s.start.get(name, st0.get(name, 0.0))
+                                                 for s in shots]))
+        if baseline == "dry":
+            self.values["phi_y"] = self.values["phi_theta"] = 0.0
+            for s in shots:  # a dry start: alpha from the stop times
+                pass
+        free_shared = []
+        if trans:
+            free_shared += ["alpha_y"] + ([] if baseline == "dry" else ["phi_y"])
+            if spin and any(s.translates and s.spins for s in shots):
+                free_shared.append("a_T")
+        if spin:
+            free_shared += ["alpha_theta"] + ([] if baseline == "dry" else ["phi_theta"])
+        released = list(cand.releases) if cand else []
+        self.free = free_shared + [n for n in released if n not in free_shared]
+        for i, s in enumerate(shots):
+            for name in PER_SHOT:
+                key = f"{name}[{i}]"
+                self.values[key] = float(s.start.get(name, 0.0)) if name in s.start else 0.0
+                use = {"v0": s.translates, "omega0": s.spins, "x0": s.translates,
+                       "y0": s.translates, "theta0": s.spins, "skew": s.translates}[name]
+                if use:
+                    self.free.append(key)
+        for name in self.free + list(self.values):
+            lo, hi, _ = _BOUNDS[_base(name)]
+            self.bounds[name] = (lo, hi)
+        if cand is not None:
+            for p in cand.params:
+                self.values[p.name] = p.null
+                self.bounds[p.name] = (p.lower, p.upper)
+                self.free.append(p.name)
+        self._rows = [np.logical_or.reduce([s.use[c] for c in COORDS]) for s in shots]
+        self._segments = []
+        i0 = 0
+        for j, s in enumerate(shots):
+            for c in COORDS:
+                m = int(s.use[c].sum())
+                if m:
+                    self._segments.append((j, c, slice(i0, i0 + m)))
+                    i0 += m
+        self.n = i0
+
+    # --- evaluation ---------------------------------------------------------------
+    @property
+    def segments(self):
+        """(shot index, coordinate, slice into the residual vector) of each segment."""
+        return self._segments
+
+    def _effect_values(self, values):
+        if self.cand is None:
+            return {}
+        out = {p.name: values[p.name] for p in self.cand.params}
+        out.update({k: v for k, v in (self.cand_fixed or {}).items()})
+        return out
+
+    cand_fixed: dict | None = None
+
+    def predict_shot(self, values: dict, i: int, t=None) -> dict:
+        """Model ``x``, ``y`` (m), ``theta`` (rad) of shot ``i`` at times ``t`` (s)."""
+        s = self.shots[i]
+        t = s.t if t is None else t
+        v = values
+        model = self._ShotModel(v0=v[f"v0[{i}]"], omega0=v[f"omega0[{i}]"],
+                                phi_y=v["phi_y"], alpha_y=v["alpha_y"],
+                                phi_theta=v["phi_theta"], alpha_theta=v["alpha_theta"],
+                                a_T=v["a_T"], R=self.R, r=self.r_band)
+        eff = effects_for(self.cand, self._effect_values(v), i, self.shots)
+        tr = self._simulate(model, effects=eff, t=t)
+        c, sn = np.cos(v[f"skew[{i}]"]), np.sin(v[f"skew[{i}]"])
+        x, y = np.asarray(tr.x), np.asarray(tr.y)
+        return {"x": v[f"x0[{i}]"] + c * x - sn * y, "y": v[f"y0[{i}]"] + sn * x + c * y,
+                "theta": v[f"theta0[{i}]"] + np.asarray(tr.theta)}
+
+    def _model_vector(self, values, shots=None, cache=None):
+        """Concatenated model values over the used rows (physical units)."""
+        preds = list(cache) if cache is not None else [None] * len(self.shots)
+        for i in range(len(self.shots)):
+            if preds[i] is None or (shots is not None and i in shots):
+                preds[i] = self.predict_shot(values, i, self.shots[i].t)
+        out = np.empty(self.n)
+        for j, c, sl in self._segments:
+            out[sl] = preds[j][c][self.shots[j].use[c]]
+        return out, preds
+
+    def data_vector(self):
+        out = np.empty(self.n)
+        for j, c, sl in self._segments:
+            out[sl] = self.shots[j].obs[c][self.shots[j].use[c]]
+        return out
+
+    def sigma_vector(self):
+        out = np.empty(self.n)
+        for j, c, sl in self._segments:
+            out[sl] = self.shots[j].sigma[c][self.shots[j].use[c]]
+        return out
+
+    def whiten(self, v):
+        """Divide by the noise and AR(1)-whiten each segment (v: (n,) or (n, k))."""
+        v = np.asarray(v, dtype=float)
+        sig = self.sigma_vector()
+        out = v / (sig if v.ndim == 1 else sig[:, None])
+        for j, c, sl in self._segments:
+            out[sl] = whiten_matrix_apply(out[sl], self.shots[j].noise[c].rho)
+        return out
+
+    # --- parameters -----------------------------------------------------------------
+    def vector(self):
+        return np.array([self.values[n] for n in self.free])
+
+    def with_vector(self, p) -> dict:
+        v = dict(self.values)
+        v.update(zip(self.free, map(float, p)))
+        return v
+
+    def _affected(self, name):
+        i = _shot_of(name)
+        if i is not None:
+            return {i}
+        if self.cand is not None and self.cand.name == "pick" and name in \
+                {p.name for p in self.cand.params}:
+            return {int((self.cand_fixed or {}).get("shot", 0))}
+        return None  # all shots
+
+    def _step(self, name, value):
+        st = _BOUNDS[_base(name)][2]
+        return st if st is not None else max(1e-4 * abs(value), 1e-9)
+
+    def jacobian_raw(self, values, base_vec=None, base_preds=None):
+        """Forward-difference d(model)/d(free params) over the used rows (physical)."""
+        if base_vec is None:
+            base_vec, base_preds = self._model_vector(values)
+        J = np.empty((self.n, len(self.free)))
+        for k, name in enumerate(self.free):
+            h = self._step(name, values[name])
+            lo, hi = self.bounds[name]
+            if hi is not None and values[name] + h > hi:
+                h = -h
+            v2 = dict(values)
+            v2[name] = values[name] + h
+            aff = self._affected(name)
+            vec, _ = self._model_vector(v2, shots=aff, cache=None if aff is None else base_preds)
+            J[:, k] = (vec - base_vec) / h
+        return J
+
+    def fit(self, max_nfev: int = 60, name: str = "<shots>") -> FitOut:
+        """Weighted least squares of all free parameters from the current values.
+
+        Raises
+        ------
+        FitError
+            The simulator fails everywhere near the start or the fit produces NaN.
+        """
+        data = self.data_vector()
+        lo = np.array([self.bounds[n][0] if self.bounds[n][0] is not None else -np.inf
+                       for n in self.free])
+        hi = np.array([self.bounds[n][1] if self.bounds[n][1] is not None else np.inf
+                       for n in self.free])
+        p0 = np.clip(self.vector(), lo + 1e-12 * (np.abs(lo) + 1), hi - 1e-12 * (np.abs(hi) + 1))
+        cache = {}
+
+        def fun(p):
+            vals = self.with_vector(p)
+            vec, preds = self._model_vector(vals)
+            cache["p"], cache["vec"], cache["preds"] = p.copy(), vec, preds
+            return self.whiten(data - vec)
+
+        def jac(p):
+            vals = self.with_vector(p)
+            if "p" in cache and np.array_equal(cache["p"], p):
+                vec, preds = cache["vec"], cache["preds"]
+            else:
+                vec, preds = self._model_vector(vals)
+            return -self.whiten(self.jacobian_raw(vals, vec, preds))
+
+        try:
+            res = least_squares(fun, p0, jac=jac, bounds=(lo, hi), x_scale="jac",
+                                max_nfev=max_nfev, method="trf")
+        except (ValueError, FloatingPointError, ZeroDivisionError) as exc:
+            raise FitError(f"model fit failed ({exc})".splitlines()[0], path=name) from None
+        self.values = self.with_vector(res.x)
+        vec, preds = self._model_vector(self.values)
+        r_raw = data - vec
+        r = self.whiten(r_raw)
+        if not np.isfinite(r).all():
+            raise FitError("model fit produced non-finite residuals", path=name)
+        J_raw = self.jacobian_raw(self.values, vec, preds)
+        J = self.whiten(J_raw)
+        chi2 = float(r @ r)
+        dof = max(self.n - len(self.free), 1)
+        try:
+            cov = np.linalg.pinv(J.T @ J)
+        except np.linalg.LinAlgError:
+            cov = np.full((len(self.free),) * 2, np.nan)
+        cov = cov * max(1.0, chi2 / dof)
+        return FitOut(dict(self.values), list(self.free), cov, chi2, self.n, r, J, r_raw,
+                      J_raw, preds, bool(res.success), str(res.message))

@@ -1,0 +1,206 @@
+"""REPORT.json content, the verdict, and the figure."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._atomic import atomic_path, write_json
+from .residuals import binned_means
+from .shots import COORDS
+
+
+def _rms_by_coord(model, r_raw) -> dict:
+    out = {}
+    for c in COORDS:
+        parts = [r_raw[sl] for j, cc, sl in model.segments if cc == c]
+        out[c] = float(np.sqrt(np.mean(np.concatenate(parts) ** 2))) if parts else None
+    return out
+
+
+def _baseline_params(fit) -> tuple[dict, dict]:
+    vals = {k: float(v) for k, v in fit.values.items()}
+    errs = {k: fit.err(k) for k in fit.free}
+    return vals, errs
+
+
+def _unexplained_gain(model, fit) -> tuple[float, int]:
+    """chi-square captured by a free mean in each of 10 time bins of every segment (a
+    model-free 'something is here'), and its number of parameters."""
+    gain, k = 0.0, 0
+    for j, c, sl in model.segments:
+        r = fit.r[sl]
+        if r.size < 20:
+            continue
+        b = binned_means(r, model.shots[j].t[model.shots[j].use[c]])
+        gain += b["chi2"]
+        k += b["dof"]
+    return gain, k
+
+
+def _evidence(sc, h0) -> str:
+    thr = sc.threshold
+    if sc.fit is None:
+        return (f"linearised delta-BIC {sc.delta_bic_linear:.1f} is far below the "
+                f"look-elsewhere threshold {thr['threshold']:.1f} "
+                f"({thr['level']:.0%} false alarms, {thr['n_boot']} bootstrap replicates)")
+    after = sc.structure_after
+    return (f"adding {sc.name} lowers chi-square by {sc.delta_bic + sc.k:.1f} for "
+            f"{sc.k} parameter(s): delta-BIC {sc.delta_bic:.1f} against a bootstrap "
+            f"look-elsewhere threshold of {thr['threshold']:.1f} ({thr['level']:.0%} false "
+            f"alarms, {thr['n_boot']} replicates); held-out RMS {h0['scalar']:.3f} -> "
+            f"{sc.heldout['time']['scalar']:.3f} noise units; residual structure after: "
+            f"Bonferroni p = {after.p_min_adjusted:.2g}")
+
+
+def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
+    """Assemble REPORT.json and decide the verdict (rule in :mod:`curltrack.discover`)."""
+    n = fit0.n
+    rms0 = _rms_by_coord(base, fit0.r_raw)
+    vals, errs = _baseline_params(fit0)
+    findings = []
+    supported = []
+    for sc in scores:
+        thr = sc.threshold["threshold"]
+        f = {"effect": sc.name, "delta_bic": sc.delta_bic, "delta_bic_linear": sc.delta_bic_linear,
+             "threshold": thr, "bootstrap": sc.threshold, "location_start": sc.location,
+             "rms_before": rms0, "rms_after": None,
+             "heldout_rmse_before": h0["scalar"], "heldout_rmse_after": None,
+             "heldout_before_by_coord": {c: h0[c] for c in COORDS},
+             "heldout_after_by_coord": None, "params": sc.params, "params_err": sc.params_err,
+             "note": sc.note}
+        if sc.fit is not None:
+            f["rms_after"] = _rms_by_coord(base, sc.fit.r_raw)
+            f["heldout_rmse_after"] = sc.heldout["time"]["scalar"]
+            f["heldout_after_by_coord"] = {c: sc.heldout["time"][c] for c in COORDS}
+            if h0_loso is not None and "shot" in sc.heldout:
+                f["loso_rmse_before"] = h0_loso["scalar"]
+                f["loso_rmse_after"] = sc.heldout["shot"]["scalar"]
+            f["structure_after"] = {"p_min_adjusted": sc.structure_after.p_min_adjusted,
+                                    "structured": sc.structure_after.structured,
+                                    "where": sc.structure_after.where}
+            ok_cv = f["heldout_rmse_after"] < f["heldout_rmse_before"]
+            if "loso_rmse_after" in f:
+                ok_cv = ok_cv or f["loso_rmse_after"] < f["loso_rmse_before"]
+            f["supported"] = bool(sc.delta_bic > max(thr, 0.0) and ok_cv)
+        else:
+            f["supported"] = False
+        f["evidence"] = _evidence(sc, h0)
+        findings.append(f)
+        if f["supported"]:
+            supported.append((sc, f))
+    verdict, unexplained = "none", None
+    best_fit, best_model_name = fit0, None
+    if supported:
+        sc, f = max(supported, key=lambda p: p[0].delta_bic)
+        best_fit, best_model_name = sc.fit, sc.name
+        if sc.structure_after.structured:
+            verdict = "unexplained"
+            unexplained = dict(sc.structure_after.where or {}, after_model=sc.name)
+        else:
+            verdict = sc.name
+    elif before.structured:
+        verdict = "unexplained"
+        unexplained = dict(before.where or {}, after_model="baseline")
+    if verdict == "unexplained":
+        gain, k = _unexplained_gain(base, best_fit)
+        w = unexplained
+        where_txt = (f"shot {w.get('shot')}, {w.get('coord')}, t = {w.get('t_from_s', 0):.1f}-"
+                     f"{w.get('t_to_s', 0):.1f} s, y = {w.get('y_from_m', 0):.2f}-"
+                     f"{w.get('y_to_m', 0):.2f} m") if w else "not localised"
+        findings.append({
+            "effect": "unexplained", "delta_bic": float(gain - k * np.log(n)),
+            "rms_before": rms0, "rms_after": _rms_by_coord(base, best_fit.r_raw),
+            "heldout_rmse_before": h0["scalar"], "heldout_rmse_after": None,
+            "params": {}, "params_err": {}, "where": unexplained,
+            "evidence": (f"residuals of the {best_model_name or 'baseline'} model stay "
+                         f"structured (a free mean in 10 time bins per series gains "
+                         f"chi-square {gain:.1f} for {k} parameters); the largest misfit "
+                         f"sits at {where_txt}")})
+    findings.sort(key=lambda f: -np.inf if f["delta_bic"] is None else -f["delta_bic"])
+    report = {
+        "baseline": {"model": base.baseline, "params": vals, "params_err": errs,
+                     "rms": rms0, "bic": float(fit0.chi2 + fit0.k * np.log(n)),
+                     "chi2": fit0.chi2, "n_points": n, "k": fit0.k,
+                     "heldout_rmse": h0["scalar"],
+                     "heldout_by_coord": {c: h0[c] for c in COORDS},
+                     "loso_rmse": h0_loso["scalar"] if h0_loso else None},
+        "findings": findings,
+        "verdict": verdict,
+        "unexplained": unexplained,
+        "structure_before": {"p_min_adjusted": before.p_min_adjusted,
+                             "structured": before.structured, "where": before.where,
+                             "tests": before.tests},
+        "noise": [{"file": s.name, **{c: s.noise[c].as_dict() for c in COORDS}}
+                  for s in shots],
+        "shots": [{"file": s.name, "spin": s.spin, "translates": s.translates,
+                   "spins": s.spins, "t_stop_translation": s.t_stop_translation,
+                   "t_stop_rotation": s.t_stop_rotation,
+                   "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
+        "warnings": [w for s in shots for w in s.warnings],
+        "_plot": {"shots": shots, "model": base, "fit0": fit0, "fit1": best_fit,
+                  "extended": best_model_name},
+    }
+    return report
+
+
+def public(report: dict) -> dict:
+    """The report without its private (``_``) keys, ready for JSON."""
+    return {k: v for k, v in report.items() if not k.startswith("_")}
+
+
+def write_json_report(report: dict, path) -> None:
+    """Write REPORT.json atomically (NaN/inf become null)."""
+    write_json(path, public(report))
+
+
+def plot_report(report: dict, path, max_shots: int = 2) -> None:
+    """Data, baseline, extended model, and residuals before/after, per coordinate.
+
+    One block of two rows per shot (at most ``max_shots``): the top row shows the data
+    (dots), the baseline (line) and the extended model (dashed) for x, y (m) and theta
+    (rad) against time; the bottom row their residuals (mm, mm, degrees) before (grey)
+    and after (colour) the extension.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    p = report["_plot"]
+    shots, model, fit0, fit1, ext = p["shots"], p["model"], p["fit0"], p["fit1"], p["extended"]
+    ns = min(len(shots), max_shots)
+    fig, axes = plt.subplots(2 * ns, 3, figsize=(13, 4.2 * ns), sharex="col", squeeze=False)
+    scale = {"x": 1e3, "y": 1e3, "theta": np.degrees(1.0)}
+    unit = {"x": "mm", "y": "mm", "theta": "deg"}
+    for j in range(ns):
+        s = shots[j]
+        for k, c in enumerate(COORDS):
+            top, bot = axes[2 * j, k], axes[2 * j + 1, k]
+            use = s.use[c]
+            t = s.t[use]
+            top.plot(t, s.obs[c][use], ".", ms=2, color="k", alpha=0.5, label="data")
+            top.plot(s.t, fit0.predictions[j][c], "-", color="C0", lw=1.2,
+                     label=f"baseline ({model.baseline})")
+            if ext:
+                top.plot(s.t, fit1.predictions[j][c], "--", color="C3", lw=1.2,
+                         label=f"+ {ext}")
+            top.set_ylabel(f"{c} ({'rad' if c == 'theta' else 'm'})")
+            r0 = (s.obs[c] - fit0.predictions[j][c])[use] * scale[c]
+            bot.plot(t, r0, ".", ms=2, color="0.6", label="baseline")
+            if ext:
+                r1 = (s.obs[c] - fit1.predictions[j][c])[use] * scale[c]
+                bot.plot(t, r1, ".", ms=2, color="C3", label=f"+ {ext}")
+            bot.axhline(0, color="k", lw=0.6)
+            bot.set_ylabel(f"residual {c} ({unit[c]})")
+            if len(t) == 0:
+                top.text(0.5, 0.5, "not used", transform=top.transAxes, ha="center")
+        axes[2 * j, 0].set_title(str(s.name).split("/")[-1], loc="left", fontsize=9)
+        axes[2 * j, 0].legend(fontsize=7, loc="best")
+        axes[2 * j + 1, 0].legend(fontsize=7, loc="best")
+    for ax in axes[-1]:
+        ax.set_xlabel("t (s)")
+    fig.suptitle(f"verdict: {report['verdict']}", fontsize=11)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,188 @@
+"""Tests for structure in whitened residuals (what a model gets wrong, and where).
+
+Every function takes residuals that have been divided by the measurement noise and
+AR(1)-whitened (:mod:`curltrack.discover.noise`), so that under a correct model they are
+close to independent unit-variance noise.  Tests:
+
+* Ljung-Box portmanteau (autocorrelation up to ``h`` lags),
+* Wald-Wolfowitz runs test on the signs,
+* binned means against a covariate (time, position along the sheet, speed): the sum of
+  ``n_b * mean_b**2`` over bins is chi-square with ``n_bins`` degrees of freedom,
+  and the worst bin says where the misfit sits,
+* spin direction (several shots): do the mean lateral residuals of clockwise and
+  counter-clockwise shots differ?
+
+:func:`structure_tests` runs all of them on every (shot, coordinate) segment and combines
+the p-values with a Bonferroni correction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+#: family-wise level at which residuals are called structured
+STRUCTURE_LEVEL = 0.01
+
+
+def ljung_box(r, h: int | None = None) -> tuple[float, float]:
+    """Ljung-Box Q statistic and p-value for autocorrelation up to ``h`` lags.
+
+    Parameters
+    ----------
+    r : array
+        Whitened residuals (unit variance under the null), in time order.
+    h : int, optional
+        Number of lags; default ``min(20, n // 5)``.
+    """
+    r = np.asarray(r, dtype=float)
+    n = r.size
+    h = int(h or max(1, min(20, n // 5)))
+    c = r - r.mean()
+    denom = float(np.dot(c, c))
+    if n < 3 * h or denom == 0.0:
+        return 0.0, 1.0
+    acf = np.array([np.dot(c[k:], c[:-k]) / denom for k in range(1, h + 1)])
+    q = n * (n + 2) * float(np.sum(acf**2 / (n - np.arange(1, h + 1))))
+    return q, float(stats.chi2.sf(q, h))
+
+
+def runs_test(r) -> tuple[float, float]:
+    """Wald-Wolfowitz runs test on the signs of ``r``: (z, two-sided p).
+
+    Too few runs (long stretches of one sign) is what a smooth misfit produces.
+    """
+    s = np.asarray(r) > 0
+    n1, n2 = int(s.sum()), int((~s).sum())
+    n = n1 + n2
+    if n1 == 0 or n2 == 0:
+        return -np.inf, 0.0
+    runs = 1 + int(np.count_nonzero(s[1:] != s[:-1]))
+    mu = 2.0 * n1 * n2 / n + 1.0
+    var = 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n * n * (n - 1.0))
+    z = (runs - mu) / np.sqrt(var) if var > 0 else 0.0
+    return float(z), float(2 * stats.norm.sf(abs(z)))
+
+
+def binned_means(r, key, n_bins: int = 10) -> dict:
+    """Chi-square of bin means of ``r`` against a covariate ``key`` (equal-count bins).
+
+    Returns
+    -------
+    dict
+        ``chi2``, ``dof``, ``p``, and the worst bin: ``lo``, ``hi`` (range of ``key``),
+        ``z`` (its mean in units of its standard error).
+    """
+    r = np.asarray(r, dtype=float)
+    key = np.asarray(key, dtype=float)
+    n_bins = int(max(1, min(n_bins, r.size // 8)))
+    order = np.argsort(key, kind="stable")
+    chunks = np.array_split(order, n_bins)
+    z = np.array([r[c].sum() / np.sqrt(len(c)) for c in chunks])
+    chi2 = float(np.sum(z**2))
+    worst = int(np.argmax(np.abs(z)))
+    return {"chi2": chi2, "dof": n_bins, "p": float(stats.chi2.sf(chi2, n_bins)),
+            "lo": float(key[chunks[worst]].min()), "hi": float(key[chunks[worst]].max()),
+            "z": float(z[worst])}
+
+
+@dataclass
+class Segment:
+    """Whitened residuals of one coordinate of one shot with their covariates.
+
+    Attributes
+    ----------
+    shot : int
+        Index of the shot.
+    coord : str
+        ``"x"``, ``"y"`` or ``"theta"``.
+    r : array
+        Whitened residuals (dimensionless), in time order.
+    t, y, speed : array
+        Time (s), model position along the sheet (m) and model speed (m/s) of each row.
+    spin : int
+        Sign of the shot's spin (+1 counter-clockwise).
+    """
+
+    shot: int
+    coord: str
+    r: np.ndarray
+    t: np.ndarray
+    y: np.ndarray
+    speed: np.ndarray
+    spin: int = 1
+
+
+@dataclass
+class StructureResult:
+    """Outcome of :func:`structure_tests`.
+
+    Attributes
+    ----------
+    p_min_adjusted : float
+        Smallest p-value times the number of tests (Bonferroni), capped at 1.
+    structured : bool
+        ``p_min_adjusted < level``.
+    tests : list of dict
+        One entry per test: shot, coord, test, statistic, p, and for binned tests where.
+    where : dict or None
+        The most significant binned misfit: shot, coordinate, time and position range.
+    """
+
+    p_min_adjusted: float
+    structured: bool
+    tests: list = field(default_factory=list)
+    where: dict | None = None
+
+    def as_dict(self) -> dict:
+        return {"p_min_adjusted": self.p_min_adjusted, "structured": self.structured,
+                "where": self.where, "tests": self.tests}
+
+
+def structure_tests(segments, level: float = STRUCTURE_LEVEL) -> StructureResult:
+    """Run every structure test on every segment; Bonferroni-combine.
+
+    Parameters
+    ----------
+    segments : list of Segment
+    level : float
+        Family-wise significance level.
+    """
+    tests = []
+    for seg in segments:
+        if seg.r.size < 20:
+            continue
+        base = {"shot": seg.shot, "coord": seg.coord}
+        q, p = ljung_box(seg.r)
+        tests.append({**base, "test": "ljung_box", "stat": q, "p": p})
+        z, p = runs_test(seg.r)
+        tests.append({**base, "test": "runs", "stat": z, "p": p})
+        for cov, key in (("time", seg.t), ("position_y", seg.y), ("speed", seg.speed)):
+            if np.ptp(key) <= 0:
+                continue
+            b = binned_means(seg.r, key)
+            tests.append({**base, "test": f"binned_{cov}", "stat": b["chi2"], "p": b["p"],
+                          "lo": b["lo"], "hi": b["hi"], "z": b["z"]})
+    lateral = [s for s in segments if s.coord == "x" and s.r.size >= 20]
+    spins = {s.spin for s in lateral}
+    if len(spins) == 2:
+        means = {sp: np.concatenate([s.r for s in lateral if s.spin == sp]) for sp in spins}
+        a, b = means[1], means[-1]
+        z = (a.mean() - b.mean()) / np.sqrt(1.0 / a.size + 1.0 / b.size)
+        tests.append({"shot": None, "coord": "x", "test": "spin_direction", "stat": float(z),
+                      "p": float(2 * stats.norm.sf(abs(z)))})
+    if not tests:
+        return StructureResult(1.0, False, [], None)
+    p_adj = min(1.0, min(t["p"] for t in tests) * len(tests))
+    binned = [t for t in tests if t["test"] == "binned_time"]
+    where = None
+    if binned:
+        w = min(binned, key=lambda t: t["p"])
+        seg = next(s for s in segments if s.shot == w["shot"] and s.coord == w["coord"])
+        sel = (seg.t >= w["lo"]) & (seg.t <= w["hi"])
+        where = {"shot": w["shot"], "coord": w["coord"], "t_from_s": w["lo"],
+                 "t_to_s": w["hi"], "y_from_m": float(seg.y[sel].min()),
+                 "y_to_m": float(seg.y[sel].max()), "z": w["z"], "p": w["p"]}
+    return StructureResult(float(p_adj), bool(p_adj < level), tests, where)

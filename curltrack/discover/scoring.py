@@ -1,0 +1,194 @@
+"""Model comparison: BIC, look-elsewhere-calibrated thresholds, held-out prediction.
+
+All quantities work on *whitened* residuals and Jacobians (divided by the noise and
+AR(1)-whitened, see :mod:`curltrack.discover.noise`), so chi-square is ``sum(r**2)``.
+
+Look-elsewhere calibration
+--------------------------
+A candidate that scans a location (a pick's time, a patch's extent) gets to choose the
+best of many places, and its null (effect size 0) sits on a boundary where the location
+is undefined, so its ``delta_bic`` under the baseline is not the textbook chi-square.  We
+calibrate each candidate's threshold by a parametric bootstrap of the fitted baseline
+with block-resampled residuals.  Refitting the nonlinear models hundreds of times would
+not fit the time budget, so the refits are done in the linear (Gauss-Newton) limit, exact
+as the effect size goes to zero, which is where the null sits: with ``J0`` the baseline's
+Jacobian and ``E_s`` the effect's Jacobian at location ``s`` (effect size 0), the gain of
+the candidate on residuals ``r`` is ``max_s |Q_s^T r|^2`` where ``Q_s`` spans the part
+of ``E_s`` orthogonal to ``J0``.  The threshold is the ``1 - level`` quantile of that
+maximum over replicates, minus the BIC penalty.  500 replicates resolve a 1 % quantile
+to about +-0.3 % in level.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: per-candidate false-alarm level of the bootstrap threshold
+CANDIDATE_LEVEL = 0.01
+N_BOOT = 500
+BLOCK_FRAMES = 10
+
+
+def bic(chi2: float, k: int, n: int) -> float:
+    """Bayesian information criterion with the noise known: ``chi2 + k ln n``."""
+    return float(chi2 + k * np.log(n))
+
+
+def orth_basis(a, rel_tol: float = 1e-6):
+    """Orthonormal basis of the column space of ``a`` (rank-revealing, via SVD)."""
+    if a.shape[1] == 0:
+        return a
+    u, s, _ = np.linalg.svd(a, full_matrices=False)
+    keep = s > rel_tol * max(s[0], 1e-300)
+    return u[:, keep]
+
+
+def effect_bases(J0, effect_cols, rel_tol: float = 1e-4):
+    """Orthonormal bases of each scan location's effect columns, orthogonal to ``J0``.
+
+    Parameters
+    ----------
+    J0 : (n, p) array
+        Whitened baseline Jacobian at the fit.
+    effect_cols : list of (n, m) arrays
+        Whitened Jacobian of the effect's size parameters at each scan location.
+    rel_tol : float
+        Directions whose norm drops below ``rel_tol`` of the original on projection are
+        degenerate with the baseline (not identifiable) and dropped.
+
+    Returns
+    -------
+    list of (n, m_s) arrays
+    """
+    Q0 = orth_basis(J0)
+    out = []
+    for E in effect_cols:
+        if E.shape[1] == 0:
+            out.append(E)
+            continue
+        norms = np.linalg.norm(E, axis=0)
+        Et = E - Q0 @ (Q0.T @ E)
+        # drop directions that were (almost) inside span(J0)
+        u, s, _ = np.linalg.svd(Et, full_matrices=False)
+        keep = s > rel_tol * max(norms.max(), 1e-300)
+        out.append(u[:, keep])
+    return out
+
+
+def scan_gain(bases, r):
+    """Linearised chi-square gain of each scan location for residual vector(s) ``r``.
+
+    Parameters
+    ----------
+    bases : list of (n, m_s) arrays (from :func:`effect_bases`)
+    r : (n,) or (n, B) array
+
+    Returns
+    -------
+    (S,) or (S, B) array
+    """
+    r = np.asarray(r, dtype=float)
+    sizes = [b.shape[1] for b in bases]
+    big = np.concatenate(bases, axis=1) if sum(sizes) else np.zeros((r.shape[0], 0))
+    proj = big.T @ r
+    out, i = [], 0
+    for m in sizes:
+        out.append((proj[i:i + m] ** 2).sum(axis=0))
+        i += m
+    return np.array(out)
+
+
+def block_resample(r, segments, rng, n_boot: int = N_BOOT, block: int = BLOCK_FRAMES):
+    """Circular block bootstrap of residuals, independently within each segment.
+
+    Parameters
+    ----------
+    r : (n,) array
+        Whitened residuals.
+    segments : list of slice
+        The (shot, coordinate) stretches of ``r``; blocks never cross them.
+    rng : numpy Generator
+    Returns
+    -------
+    (n, n_boot) array
+    """
+    out = np.empty((r.size, n_boot))
+    for sl in segments:
+        seg = r[sl]
+        m = seg.size
+        if m == 0:
+            continue
+        b = min(block, m)
+        n_blocks = -(-m // b)
+        starts = rng.integers(0, m, size=(n_blocks, n_boot))
+        idx = (starts[:, None, :] + np.arange(b)[None, :, None]) % m
+        out[sl] = seg[idx.reshape(-1, n_boot)[:m]]
+    return out
+
+
+def bootstrap_threshold(bases, r0, segments, k: int, n: int, rng,
+                        level: float = CANDIDATE_LEVEL, n_boot: int = N_BOOT) -> dict:
+    """Look-elsewhere-calibrated delta-BIC threshold for one candidate.
+
+    Parameters
+    ----------
+    bases : list of arrays
+        From :func:`effect_bases` (one per scan location).
+    r0 : (n,) array
+        Whitened baseline residuals (the bootstrap's noise).
+    segments : list of slice
+    k : int
+        Number of parameters the candidate adds (for the BIC penalty).
+    n : int
+        Number of data points.
+    rng : numpy Generator
+    level : float
+        False-alarm probability of the threshold.
+
+    Returns
+    -------
+    dict
+        ``threshold`` (delta-BIC), ``chi2_quantile``, ``level``, ``n_boot``,
+        ``n_locations`` and ``null_mean`` (mean of the null max gain, a look-elsewhere
+        measure: 1 per free direction without scanning).
+    """
+    if not bases or sum(b.shape[1] for b in bases) == 0:
+        return {"threshold": np.inf, "chi2_quantile": np.inf, "level": level,
+                "n_boot": 0, "n_locations": len(bases), "null_mean": 0.0}
+    star = block_resample(r0, segments, rng, n_boot)
+    # the bootstrap's baseline refit removes the part of r* in span(J0); bases are
+    # orthogonal to J0 already, so projecting r* directly is the same thing.
+    gains = scan_gain(bases, star).max(axis=0)
+    q = float(np.quantile(gains, 1.0 - level))
+    return {"threshold": q - k * np.log(n), "chi2_quantile": q, "level": level,
+            "n_boot": n_boot, "n_locations": len(bases), "null_mean": float(gains.mean())}
+
+
+def linear_cv(J, r, folds):
+    """Held-out residuals by blocked cross-validation in the Gauss-Newton limit.
+
+    For each fold the parameters are refitted on the rows outside it by one Gauss-Newton
+    step from the full fit (``r`` and ``J`` at the optimum; the step is what removing
+    those rows moves the optimum by, to first order), and the fold's rows are predicted.
+
+    Parameters
+    ----------
+    J : (n, p) array
+        Whitened Jacobian of the model at the full-data fit (d model / d param).
+    r : (n,) array
+        Whitened residuals (data - model) at the fit.
+    folds : (n,) int array
+        Fold of each row; -1 = always in training.
+
+    Returns
+    -------
+    (n,) array
+        Held-out whitened residual of each row (NaN for rows never held out).
+    """
+    out = np.full(r.size, np.nan)
+    for f in np.unique(folds[folds >= 0]):
+        test = folds == f
+        train = ~test
+        dp, *_ = np.linalg.lstsq(J[train], r[train], rcond=None)
+        out[test] = r[test] - J[test] @ dp
+    return out
