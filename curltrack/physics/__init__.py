@@ -1,5 +1,8 @@
 """The one model core: closed forms, equations of motion, effect terms."""
 
 from . import closed_form
+from .dynamics import simulate
+from .effects import EFFECTS, Effect
+from .shot import ShotModel, Trajectory
 
-__all__ = ["closed_form"]
+__all__ = ["closed_form", "simulate", "Effect", "EFFECTS", "ShotModel", "Trajectory"]
