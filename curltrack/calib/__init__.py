@@ -11,5 +11,6 @@ See :mod:`curltrack.calib.grid` for the lattice frame's definition.
 """
 
 from .grid import Calibration, PlaneMap, calibrate_frame
+from .tracker import GridPose, GridTracker
 
-__all__ = ["Calibration", "PlaneMap", "calibrate_frame"]
+__all__ = ["Calibration", "GridPose", "GridTracker", "PlaneMap", "calibrate_frame"]

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import TrackingError
-from .lattice import fit_lattice, initial_lattice, per_line_offsets, periods_px
+from .lattice import assign_families, fit_lattice, initial_lattice, per_line_offsets, periods_px
 from .lens import apply_h, camera_matrix, distort, undistort
 from .response import ColourModel, candidate_pixels, local_contrast, thread_response
 
@@ -122,6 +122,24 @@ class Calibration(PlaneMap):
                    n_colors=int(d.get("n_colors", 0)),
                    thread_width_px=float(d.get("thread_width_px", 1.0)),
                    camera_height_m=d.get("camera_height_m"), notes=list(d.get("notes", [])))
+
+
+def normaliser(K) -> np.ndarray:
+    """N with q = N p: pixel -> normalised coordinates ``(p - c) / f``."""
+    f, c = K[0, 0], K[:2, 2]
+    return np.array([[1 / f, 0, -c[0] / f], [0, 1 / f, -c[1] / f], [0, 0, 1.0]])
+
+
+def cells_from_metric(H, K, spacing_x_m, spacing_y_m) -> np.ndarray:
+    """Undistorted px -> metres homography  ->  normalised coords -> cells homography."""
+    Hc = np.diag([1 / spacing_x_m, 1 / spacing_y_m, 1.0]) @ H @ np.linalg.inv(normaliser(K))
+    return Hc / Hc[2, 2]
+
+
+def metric_from_cells(Hc, K, spacing_x_m, spacing_y_m) -> np.ndarray:
+    """Inverse of :func:`cells_from_metric`."""
+    H = np.diag([spacing_x_m, spacing_y_m, 1.0]) @ Hc @ normaliser(K)
+    return H / H[2, 2]
 
 
 def _rig_colours(rig):
@@ -252,10 +270,8 @@ def _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info) -> Calibrat
     q = (undistort(xs, K, dist) - c) / f
     ab = apply_h(Hc, q)
     lines = per_line_offsets(xs, wt, Hc, K, dist)
-    from .lattice import _assign
-
     pa, pb = periods_px(Hc, f)
-    fam_a, fam_b, ia, ib = _assign(ab[:, 0], ab[:, 1], pa, pb, 2.5, 3.5)
+    fam_a, fam_b, ia, ib = assign_families(ab[:, 0], ab[:, 1], pa, pb, 2.5, 3.5)
     n = len(rig.grid_colors)
     resolved = False
     ab0 = apply_h(Hc, np.zeros((1, 2)))[0]

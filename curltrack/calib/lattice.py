@@ -106,12 +106,18 @@ def initial_lattice(resp, xs, w, centre):
     return np.array(rows)
 
 
-def _assign(a, b, pa, pb, band_px, cross_px):
-    """Split pixels into family A / B thread pixels with integer indices; crossings dropped."""
+def assign_families(a, b, pa, pb, band_px, cross_px=None):
+    """Split pixels into family A / B thread pixels with integer indices; crossings dropped.
+
+    ``band_px`` (and ``cross_px``, default band + 1) may be a pair (family A, family B).
+    """
+    ba, bb = np.broadcast_to(np.asarray(band_px, float), (2,))
+    ca, cb = (ba + 1.0, bb + 1.0) if cross_px is None else np.broadcast_to(
+        np.asarray(cross_px, float), (2,))
     ia, ib = np.round(a), np.round(b)
     da, db = np.abs(a - ia) * pa, np.abs(b - ib) * pb
-    fam_a = (da < band_px) & (db > cross_px)
-    fam_b = (db < band_px) & (da > cross_px)
+    fam_a = (da < ba) & (db > cb)
+    fam_b = (db < bb) & (da > ca)
     return fam_a, fam_b, ia, ib
 
 
@@ -181,14 +187,16 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free_dist: int = 0, centre=None,
         for it in range(iterations):
             pa, pb = periods_px(Hc, f)
             ab = apply_h(Hc, q)
-            fam_a, fam_b, ia, ib = _assign(ab[:, 0], ab[:, 1], pa, pb, band_px, band_px + 1.0)
+            fam_a, fam_b, ia, ib = assign_families(ab[:, 0], ab[:, 1], pa, pb, band_px)
             fam_a &= sel
             fam_b &= sel
             if fam_a.sum() < 20 or fam_b.sum() < 20:
                 break
             r = _residuals(Hc, q, fam_a, fam_b, ia, ib, pa, pb)
             ww = np.concatenate([w[fam_a], w[fam_b]])
-            ww = ww * np.clip(1 - (r / band_px) ** 2, 0, None) ** 2  # Tukey biweight
+            bands = np.broadcast_to(np.asarray(band_px, float), (2,))
+            bw = np.concatenate([np.full(fam_a.sum(), bands[0]), np.full(fam_b.sum(), bands[1])])
+            ww = ww * np.clip(1 - (r / bw) ** 2, 0, None) ** 2  # Tukey biweight
             J = _h_jacobian(Hc, q, fam_a, fam_b, pa, pb)
             if stage_free:
                 cols = []
@@ -227,7 +235,7 @@ def per_line_offsets(xs, w, Hc, K, dist, band_px: float = 3.0):
     q = (undistort(xs, K, dist) - c) / f
     ab = apply_h(Hc, q)
     pa, pb = periods_px(Hc, f)
-    fam_a, fam_b, ia, ib = _assign(ab[:, 0], ab[:, 1], pa, pb, band_px, band_px + 1.0)
+    fam_a, fam_b, ia, ib = assign_families(ab[:, 0], ab[:, 1], pa, pb, band_px)
     out, offs = {}, []
     for name, fam, idx, col, p in (("a", fam_a, ia, 0, pa), ("b", fam_b, ib, 1, pb)):
         lines = {}
