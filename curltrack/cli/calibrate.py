@@ -1,0 +1,58 @@
+"""`curltrack calibrate`: the thread grid on one frame -> CALIB.json (+ annotated PNG)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from ._app import app, guarded
+
+
+@app.command()
+@guarded
+def calibrate(
+    source: Path = typer.Argument(..., help="Video (or a still image) of the ice seen from "
+                                  "above with the thread grid in view."),
+    rig: Path = typer.Option(..., "--rig", help="Rig TOML: thread spacings (and colours)."),
+    output: Path = typer.Option(..., "-o", "--output", help="CALIB.json to write."),
+    frame: int = typer.Option(0, "--frame", min=0, help="Frame to calibrate on (0-based)."),
+    overlay: Path = typer.Option(None, "--overlay", help="PNG: the frame with the fitted "
+                                 "threads, origin and axes drawn."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
+):
+    """Find the thread lattice, lens distortion and image -> ice homography on one frame.
+
+    Units: metres on the ice, pixels in the image (origin at the centre of the top-left
+    pixel).  The homography maps undistorted pixels to the lattice frame (axes along the
+    threads, origin at a thread crossing, x, y, up right-handed).
+    """
+    from .._atomic import atomic_path, write_json
+    from ..calib import calibrate_frame
+    from ..errors import TrackingError
+    from ..rig import load_rig
+    from ..video import read_frame
+
+    r = load_rig(rig)
+    image = read_frame(source, frame)
+    try:
+        cal = calibrate_frame(image, r)
+    except TrackingError as exc:
+        raise TrackingError(exc.message, path=source, where=f"frame {frame}") from None
+    data = {"source": str(source), "frame": frame, **cal.to_dict()}
+    write_json(output, data)
+    if overlay:
+        import cv2
+
+        from ..calib.overlay import draw_grid
+
+        img = draw_grid(image, cal)
+        with atomic_path(overlay) as tmp:
+            if not cv2.imwrite(str(tmp), img):
+                raise TrackingError("cannot write the overlay image", path=overlay)
+    if not quiet:
+        nx, ny = cal.n_threads
+        typer.echo(f"grid: {nx} x {ny} threads, spacing {cal.spacing_px:.1f} px, residual "
+                   f"{cal.residual_px:.3f} px, k1 = {cal.dist[0]:+.4f}, colours "
+                   f"{'identified' if cal.colors_resolved else 'not identified'}")
+        typer.echo(f"wrote {output}" + (f" and {overlay}" if overlay else ""))
