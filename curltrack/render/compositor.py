@@ -65,6 +65,7 @@ class Compositor:
         self.read_noise, self.gain = float(read_noise), float(shot_noise_gain)
         self.jpeg_quality = jpeg_quality
         self.rng = rng
+        self.max_step_px = 1.5
         pad = 32
         self._bank = [cv2.GaussianBlur(rng.standard_normal((H + pad, W + pad, 3),
                                                            dtype=np.float32), (0, 0), 0.5) * 1.6
@@ -80,22 +81,8 @@ class Compositor:
         """Sprite (col, row) -> canvas px for an object at world ``pose`` (3x3)."""
         return self.T @ cam.plane_homography(sprite.z_m) @ pose @ sprite.affine
 
-    def begin(self) -> None:
-        self.acc[:] = 0.0
-        self._n = 0
-
-    def add_subframe(self, cam: Camera, tex: Texture, layers) -> None:
-        """Add one sub-frame: the ice warped for ``cam``, then ``layers`` composited.
-
-        ``layers`` : list of (Sprite, pose 3x3), bottom to top.
-        """
-        size = self.canvas_size
-        bg = cv2.warpPerspective(tex.image, self.ice_homography(cam, tex), size,
-                                 flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-        cv2.accumulate(bg, self.acc)
-        self._n += 1
-        if not layers:
-            return
+    def _sprite_boxes(self, cam: Camera, layers):
+        """Homographies of ``layers`` at ``cam`` and their canvas bounding box."""
         homs, boxes = [], []
         for sprite, pose in layers:
             Hs = self.sprite_homography(cam, sprite, pose)
@@ -107,31 +94,82 @@ class Compositor:
             p = p[:, :2] / p[:, 2:]
             homs.append((sprite, Hs))
             boxes.append(np.r_[p.min(0), p.max(0)])
+        return homs, boxes
+
+    def _bg_count(self, cam_first: Camera, cam_last: Camera, tex: Texture) -> int:
+        """Background sub-frames needed for steps <= ``max_step_px`` over the exposure."""
+        w, h = self.canvas_size
+        pts = np.array([[0, 0, 1], [w, 0, 1], [0, h, 1], [w, h, 1], [w / 2, h / 2, 1.0]])
+        M = self.ice_homography(cam_last, tex) @ np.linalg.inv(self.ice_homography(cam_first, tex))
+        q = pts @ M.T
+        disp = np.hypot(*(q[:, :2] / q[:, 2:] - pts[:, :2]).T).max()
+        return int(np.ceil(disp / self.max_step_px)) + 1
+
+    def frame(self, times, cam_at, layers_at, tex: Texture) -> np.ndarray:
+        """Render one frame exposed over the sub-frame ``times`` (s).
+
+        The whole view is averaged over enough background sub-frames that consecutive
+        ones differ by at most ``max_step_px`` (the camera often barely moves within an
+        exposure); the box around the rock (and broom) is averaged over every sub-frame
+        with the ice warped into the box for each, so the moving rock's blur is exact.
+
+        Parameters
+        ----------
+        times : array
+            Sub-frame times (s), in order.
+        cam_at : callable
+            t -> Camera.
+        layers_at : callable
+            t -> list of (Sprite, world pose 3x3), bottom to top.
+        tex : Texture
+        """
+        cams = [cam_at(t) for t in times]
+        n = len(times)
+        n_bg = min(n, self._bg_count(cams[0], cams[-1], tex)) if n > 1 else 1
+        if n_bg == n:
+            bg_cams = cams
+        elif n_bg == 1:
+            bg_cams = [cam_at(0.5 * (times[0] + times[-1]))]
+        else:
+            bg_cams = [cam_at(t) for t in np.linspace(times[0], times[-1], n_bg)]
+        size = self.canvas_size
+        self.acc[:] = 0.0
+        for c in bg_cams:
+            bg = cv2.warpPerspective(tex.image, self.ice_homography(c, tex), size,
+                                     flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+            cv2.accumulate(bg, self.acc)
+        self.acc *= 1.0 / len(bg_cams)
+        per_sub = [self._sprite_boxes(c, layers_at(t)) for c, t in zip(cams, times)]
+        boxes = [b for _, bx in per_sub for b in bx]
         if not boxes:
-            return
+            return self._finish()
         b = np.array(boxes)
         x0 = int(max(0, np.floor(b[:, 0].min()) - 1))
         y0 = int(max(0, np.floor(b[:, 1].min()) - 1))
         x1 = int(min(size[0], np.ceil(b[:, 2].max()) + 2))
         y1 = int(min(size[1], np.ceil(b[:, 3].max()) + 2))
         if x1 <= x0 or y1 <= y0:
-            return
-        roi_bg = bg[y0:y1, x0:x1].astype(np.float32)
-        comp = roi_bg.copy()
+            return self._finish()
+        box = (x1 - x0, y1 - y0)
         Troi = _translate(-x0, -y0)
-        for sprite, Hs in homs:
-            warped = cv2.warpPerspective(sprite.rgba, Troi @ Hs, (x1 - x0, y1 - y0),
-                                         flags=cv2.INTER_LINEAR,
-                                         borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            a = warped[..., 3:4]
-            comp *= 1.0 - a
-            comp += warped[..., :3]
-        self.acc[y0:y1, x0:x1] += comp - roi_bg
+        roi = np.zeros((box[1], box[0], 3), np.float32)
+        for c, (homs, _) in zip(cams, per_sub):
+            comp = cv2.warpPerspective(tex.image, Troi @ self.ice_homography(c, tex), box,
+                                       flags=cv2.INTER_LINEAR,
+                                       borderMode=cv2.BORDER_REFLECT).astype(np.float32)
+            for sprite, Hs in homs:
+                warped = cv2.warpPerspective(sprite.rgba, Troi @ Hs, box, flags=cv2.INTER_LINEAR,
+                                             borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+                comp *= 1.0 - warped[..., 3:4]
+                comp += warped[..., :3]
+            roi += comp
+        self.acc[y0:y1, x0:x1] = roi * (1.0 / n)
+        return self._finish()
 
-    def finish(self) -> np.ndarray:
-        """Average the sub-frames, distort, vignette, add noise; the final BGR uint8 frame."""
+    def _finish(self) -> np.ndarray:
+        """Distort, vignette, add noise; the final BGR uint8 frame."""
         img = cv2.remap(self.acc, self.map1, self.map2, cv2.INTER_LINEAR)
-        img *= (self.vignette / max(self._n, 1))[..., None]
+        img *= self.vignette[..., None]
         if self.read_noise > 0 or self.gain > 0:
             H, W = img.shape[:2]
             bank = self._bank[int(self.rng.integers(len(self._bank)))]

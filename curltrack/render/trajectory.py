@@ -47,7 +47,8 @@ class Trajectory:
     psi0 : float
         The rock's orientation in the world at t = 0 (rad).
     stopped_tail_s : float
-        Seconds of stopped rock appended (only if the series has stopped).
+        The video shows at least this much stopped rock after the last stop (rows are
+        appended when the series' own rest is shorter; only if the series has stopped).
     """
 
     def __init__(self, series: Series, heading_rad: float, psi0: float,
@@ -73,13 +74,14 @@ class Trajectory:
         self.t_stop_rot = self._stop("t_stop_rotation", self.theta, STILL_RAD)
         still_at_end = all(s is not None and s <= self.t[-1] + 1e-9
                            for s in (self.t_stop_tr, self.t_stop_rot))
-        if stopped_tail_s > 0 and not still_at_end:
-            self.warnings.append("the series has not stopped at its end: no stopped tail")
-            stopped_tail_s = 0.0
         self.t_end = self.t[-1]
-        self.duration = self.t_end + stopped_tail_s
         stops = [s for s in (self.t_stop_tr, self.t_stop_rot) if s]
         self.t_motion_end = max(stops) if stops else self.t_end
+        self.duration = self.t_end
+        if stopped_tail_s > 0 and not still_at_end:
+            self.warnings.append("the series has not stopped at its end: no stopped tail")
+        elif stopped_tail_s > 0:  # at least this much rest at the end of the video
+            self.duration = max(self.t_end, self.t_motion_end + stopped_tail_s)
         disp = np.hypot(*self.xy.T)
         self.translating = disp.max() > TRANSLATING_M
         if self.translating:

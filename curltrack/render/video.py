@@ -65,8 +65,8 @@ class RenderConfig:
     occlusion_speed_m_s : float
         Broom speed across the view (m/s), default 1.2.
     stopped_tail_s : float
-        Seconds of stopped rock appended after the series' last row, default 1.0
-        (only when the series has stopped).
+        The video ends at least this long after the rock's last stop (s), default 1.0;
+        frames are appended when the series' own rest is shorter (only when it stopped).
     marker_diameter_m : float
         Diameter of the marker discs (m), default 0.025.
     ice : IceStyle
@@ -244,10 +244,7 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
             raise VideoError(f"cannot open a {FOURCC} video writer", path=video_path)
         try:
             for k, tk in enumerate(t_frames):
-                comp.begin()
-                for dt in offsets:
-                    comp.add_subframe(path.camera(tk + dt), tex, layers_at(tk + dt))
-                writer.write(comp.finish())
+                writer.write(comp.frame(tk + offsets, path.camera, layers_at, tex))
                 if progress and (k % 30 == 0 or k == n_frames - 1):
                     print(f"\rrender: frame {k + 1}/{n_frames}", end="", file=sys.stderr)
         finally:
