@@ -46,6 +46,8 @@ class PinholeCamera:
         Small rotations about the world x and y axes (rad).
     k1, k2 : float
         Radial distortion (OpenCV convention, normalised by ``f``).
+    principal_offset : (float, float)
+        Principal point (= distortion centre) minus the image centre (px).
     """
 
     width: int = 960
@@ -57,10 +59,13 @@ class PinholeCamera:
     tilt_y: float = 0.0
     k1: float = 0.0
     k2: float = 0.0
+    principal_offset: tuple = (0.0, 0.0)
 
     @property
     def K(self) -> np.ndarray:
-        return camera_matrix(self.width, self.height, self.f)
+        K = camera_matrix(self.width, self.height, self.f)
+        K[:2, 2] += self.principal_offset
+        return K
 
     @property
     def dist(self) -> tuple:

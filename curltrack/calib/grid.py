@@ -227,8 +227,8 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
     radii = [0.3 * half_diag, 0.5 * half_diag, 0.7 * half_diag, 0.85 * half_diag, None]
     dist = (0.0, 0.0)
     for _attempt in range(3):
-        Hc, dist, info = fit_lattice(xs, wt, Hc, K, dist, free_dist=1, radii=radii,
-                                     band_px=3.0)
+        Hc, K, dist, info = fit_lattice(xs, wt, Hc, K, dist, free=("k1",), radii=radii,
+                                        band_px=3.0)
         halved = False
         for fam in (0, 1):
             if _check_period(xs, wt, Hc, K, dist, fam):
@@ -237,8 +237,8 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
         if not halved:
             break
         radii = [0.5 * half_diag, None]
-    Hc, dist, info = fit_lattice(xs, wt, Hc, K, dist, free_dist=2, radii=(None,), band_px=2.5,
-                                 iterations=5)
+    Hc, K, dist, info = fit_lattice(xs, wt, Hc, K, dist, free=("k1", "k2", "cx", "cy"),
+                                    radii=(None,), band_px=2.5, iterations=6)
     if not info or info["lines_a"] < 3 or info["lines_b"] < 3:
         raise TrackingError("no grid found: fewer than 3 threads in a family could be fitted")
     return _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info)

@@ -145,9 +145,24 @@ def periods_px(Hc, f):
     return f / np.linalg.norm(J[0]), f / np.linalg.norm(J[1])
 
 
-def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free_dist: int = 0, centre=None,
-                radii=(None,), band_px: float = 3.0, iterations: int = 4):
-    """Refine the lattice homography (and optionally k1, k2) by robust Gauss-Newton.
+LENS_PARAMS = ("k1", "k2", "cx", "cy")
+CENTRE_PRIOR_PX = 30.0  # weak prior: distortion centre within ~30 px of the image centre
+
+
+def _lens_K(K, lens):
+    K2 = K.copy()
+    K2[0, 2], K2[1, 2] = lens[2], lens[3]
+    return K2
+
+
+def _normalised(xs, K, lens):
+    K2 = _lens_K(K, lens)
+    return (undistort(xs, K2, lens[:2]) - K2[:2, 2]) / K2[0, 0]
+
+
+def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None,),
+                band_px=3.0, iterations: int = 4):
+    """Refine the lattice homography (and optionally the lens) by robust Gauss-Newton.
 
     Parameters
     ----------
@@ -156,71 +171,81 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free_dist: int = 0, centre=None,
     Hc : (3, 3)
         Starting homography normalised-undistorted px -> cells.
     K : (3, 3)
-        Camera matrix (reference focal length, principal point).
+        Camera matrix (reference focal length, principal point = distortion centre).
     dist : (k1, k2)
         Starting radial distortion.
-    free_dist : int
-        0: distortion fixed; 1: fit k1; 2: fit k1 and k2.
+    free : sequence of {"k1", "k2", "cx", "cy"}
+        Lens parameters fitted too (the distortion centre has a weak prior at its
+        starting value, so it stays put when the distortion is too weak to locate it).
     centre : (2,), optional
         Centre of the growing region (px); default the principal point.
     radii : sequence of float or None
-        Region-growing radii (px); None = all pixels.
-    band_px : float
-        Half-width (px) of the band around a thread whose pixels belong to it.
+        Region-growing radii (px); None = all pixels.  Lens parameters are only freed
+        once the region covers more than half the image.
+    band_px : float or (float, float)
+        Half-width (px) of the band around a thread whose pixels belong to it (per family).
 
     Returns
     -------
-    Hc, dist, info : ndarray, tuple, dict
+    Hc, K, dist, info : ndarray, ndarray, tuple, dict
         ``info``: ``rms_px`` (weighted RMS of pixel-to-thread distances), ``n_a``,
         ``n_b`` (pixels used), ``lines_a``, ``lines_b`` (distinct thread indices).
     """
-    f, c = K[0, 0], K[:2, 2]
-    centre = c if centre is None else np.asarray(centre, float)
-    dist = tuple(float(d) for d in (tuple(dist) + (0.0, 0.0))[:2])
+    f = K[0, 0]
+    lens = np.array([*(tuple(dist) + (0.0, 0.0))[:2], K[0, 2], K[1, 2]], float)
+    lens0 = lens.copy()
+    free_idx = [LENS_PARAMS.index(n) for n in free]
+    eps = np.array([1e-4, 1e-4, 0.5, 0.5])
+    centre = lens[2:] if centre is None else np.asarray(centre, float)
     rad = np.hypot(*(xs - centre).T)
-    q = (undistort(xs, K, dist) - c) / f
+    q = _normalised(xs, K, lens)
     Hc = Hc / Hc[2, 2]
+    bands = np.broadcast_to(np.asarray(band_px, float), (2,))
     info = {}
     for radius in radii:
         sel = rad <= radius if radius is not None else np.ones(len(xs), bool)
-        stage_free = free_dist if radius is None or radius > 0.5 * rad.max() else 0
-        for it in range(iterations):
+        stage_free = free_idx if radius is None or radius > 0.5 * rad.max() else []
+        for _ in range(iterations):
             pa, pb = periods_px(Hc, f)
             ab = apply_h(Hc, q)
-            fam_a, fam_b, ia, ib = assign_families(ab[:, 0], ab[:, 1], pa, pb, band_px)
+            fam_a, fam_b, ia, ib = assign_families(ab[:, 0], ab[:, 1], pa, pb, bands)
             fam_a &= sel
             fam_b &= sel
             if fam_a.sum() < 20 or fam_b.sum() < 20:
                 break
             r = _residuals(Hc, q, fam_a, fam_b, ia, ib, pa, pb)
             ww = np.concatenate([w[fam_a], w[fam_b]])
-            bands = np.broadcast_to(np.asarray(band_px, float), (2,))
             bw = np.concatenate([np.full(fam_a.sum(), bands[0]), np.full(fam_b.sum(), bands[1])])
             ww = ww * np.clip(1 - (r / bw) ** 2, 0, None) ** 2  # Tukey biweight
             J = _h_jacobian(Hc, q, fam_a, fam_b, pa, pb)
-            if stage_free:
-                cols = []
-                for j in range(stage_free):
-                    dd = list(dist)
-                    eps = 1e-4
-                    dd[j] += eps
-                    q2 = (undistort(xs, K, dd) - c) / f
-                    cols.append((_residuals(Hc, q2, fam_a, fam_b, ia, ib, pa, pb) - r) / eps)
+            cols = []
+            for j in stage_free:
+                l2 = lens.copy()
+                l2[j] += eps[j]
+                q2 = _normalised(xs, K, l2)
+                cols.append((_residuals(Hc, q2, fam_a, fam_b, ia, ib, pa, pb) - r) / eps[j])
+            if cols:
                 J = np.column_stack([J] + cols)
             JW = J * ww[:, None]
             A = J.T @ JW
+            g = -JW.T @ r
             A += 1e-9 * np.trace(A) * np.eye(len(A))
-            step = np.linalg.solve(A, -JW.T @ r)
+            for col, j in enumerate(stage_free):
+                if j >= 2:  # prior on the distortion centre, worth ~100 thread pixels
+                    lam = 100.0 * np.mean(ww) / CENTRE_PRIOR_PX ** 2
+                    A[8 + col, 8 + col] += lam
+                    g[8 + col] -= lam * (lens[j] - lens0[j])
+            step = np.linalg.solve(A, g)
             Hc = Hc + np.append(step[:8], 0.0).reshape(3, 3)
             if stage_free:
-                dist = tuple(np.asarray(dist) + np.append(step[8:], [0.0] * (2 - stage_free)))
-                q = (undistort(xs, K, dist) - c) / f
+                lens[stage_free] += step[8:]
+                q = _normalised(xs, K, lens)
             info = {"rms_px": float(np.sqrt(np.sum(ww * r * r) / max(ww.sum(), 1e-12))),
                     "n_a": int(fam_a.sum()), "n_b": int(fam_b.sum()),
                     "lines_a": int(len(np.unique(ia[fam_a]))),
                     "lines_b": int(len(np.unique(ib[fam_b]))),
                     "step": float(np.abs(step[:8]).max())}
-    return Hc, dist, info
+    return Hc, _lens_K(K, lens), (float(lens[0]), float(lens[1])), info
 
 
 def per_line_offsets(xs, w, Hc, K, dist, band_px: float = 3.0):

@@ -159,8 +159,7 @@ class GridTracker:
         na, nb = J[0] / np.linalg.norm(J[0]), J[1] / np.linalg.norm(J[1])
         bands = (min(3.0 + 0.5 * abs(motion @ na), 0.4 * pa),
                  min(3.0 + 0.5 * abs(motion @ nb), 0.4 * pb))
-        Hc, _, info = fit_lattice(xs, w, Hc, K, dist, free_dist=0, band_px=bands,
-                                  iterations=3)
+        Hc, _, _, info = fit_lattice(xs, w, Hc, K, dist, band_px=bands, iterations=3)
         if not info or info["lines_a"] < 2 or info["lines_b"] < 2:
             return failed("grid not visible (fewer than 2 threads in a family)")
         # Integer cell index: jump relative to the prediction at the image centre.
