@@ -33,7 +33,13 @@ def _usage(message: str, param_hint: str = "") -> None:
 
 
 def _parse_effects(names: List[str], params: List[str]):
-    """Pair each --param with an effect: by the key's owner, in command-line order."""
+    """Pair each --param with an effect.
+
+    Click does not keep the interleaving of --effect and --param, but parameter names are
+    unique across effect types; for repeated effects (two picks) a key goes to the latest
+    occurrence that already has parameters and lacks this one, else to the first that
+    lacks it — right whenever each effect's --param's follow it.
+    """
     from ..physics.effects import EFFECTS, Effect
 
     for name in names:
@@ -50,7 +56,9 @@ def _parse_effects(names: List[str], params: List[str]):
             value = float(text)
         except ValueError:
             _usage(f"{key}: expected a number, got {text!r}", param_hint="--param")
-        owner = next((p for n, p in chosen if key in EFFECTS[n] and key not in p), None)
+        lacking = [p for n, p in chosen if key in EFFECTS[n] and key not in p]
+        started = [p for p in lacking if p]
+        owner = started[-1] if started else (lacking[0] if lacking else None)
         if owner is None:
             valid = sorted({k for n in names for k in EFFECTS[n]})
             _usage(
@@ -99,7 +107,7 @@ def simulate(
         _usage(f"expected paper or segment, got {model!r}", param_hint="--model")
     if friction_direction not in ("ice", "film"):
         _usage(f"expected ice or film, got {friction_direction!r}",
-                                 param_hint="--friction-direction")
+               param_hint="--friction-direction")
     effects = _parse_effects(effect, param)
     the_rig = load_rig(rig) if rig else default_rig()
     if fps is None:

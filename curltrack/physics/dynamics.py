@@ -78,8 +78,10 @@ def solve(model: ShotModel, effects=(), horizon: float | None = None, method: st
             _, dvx, dvy, dw = terms.picks[i]
             state = (end["x"][0], end["y"][0], end["vx"][0] + dvx, end["vy"][0] + dvy,
                      end["theta"][0], end["omega"][0] + dw)
-    return segments, _stop_time(segments, "t_stop_translation"), \
-        _stop_time(segments, "t_stop_rotation")
+    stops = [_stop_time(segments, a) for a in ("t_stop_translation", "t_stop_rotation")]
+    # both solvers report a stop beyond the horizon alike: not stopped (inf)
+    stops = [s if s <= horizon else math.inf for s in stops]
+    return segments, stops[0], stops[1]
 
 
 def _stop_time(segments, attr) -> float:

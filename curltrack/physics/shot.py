@@ -7,7 +7,7 @@ and spin omega:
 
     dv/dt     = -alpha_y g v^phi_y                         (friction opposite the velocity)
     I dw/dt   = -r alpha_theta (r|w|)^phi_theta M g sign(w),  I = M R^2 / 2  (w = omega)
-    dpsi/dt   = sign(w) a_T h(v) / v,   h(v) = v^2 / (v^2 + v_c^2)
+    dpsi/dt   = sign(w) a_T h(v) / v,   h(v) = 1 - exp(-(v/v_c)^2)
     dx/dt = -v sin(psi),  dy/dt = v cos(psi),  dtheta/dt = w
 
 Translation and rotation decelerate with their own (alpha, phi): one phi cannot give a
