@@ -1,15 +1,18 @@
 """Synthetic overhead video of a shot, with its ground truth (``curltrack render``).
 
-Pipeline: :mod:`trajectory` (series placed on the ice, truth frame) ->
-:mod:`motion` (how the camera is held) -> :mod:`scene` (ice, threads, rock, broom,
-pre-rendered once) -> :mod:`compositor` (per-frame warps, blur, distortion, noise) ->
-:mod:`video` (the loop, the writer, the truth).  Pixel and world conventions are in
-:mod:`curltrack.render.camera`.
+Pipeline: :mod:`~.trajectory` (the series placed on the ice; the truth frame) ->
+:mod:`~.motion` (how the camera is held) -> :mod:`~.scene` (ice, threads, rock, broom,
+pre-rendered once) -> :mod:`~.compositor` (per-frame warps, blur, distortion, noise) ->
+:mod:`~.production` (one rendering set up, frames streamed) -> :mod:`~.video` (the mp4
+and the truth files).  Pixel and world conventions: :mod:`curltrack.render.camera`.
 """
 
 from .camera import Camera
+from .config import RenderConfig
 from .motion import CameraConfig, CameraPath
+from .production import FrameInfo, Production
 from .scene import IceStyle
-from .video import RenderConfig, render_video
+from .video import render_video
 
-__all__ = ["Camera", "CameraConfig", "CameraPath", "IceStyle", "RenderConfig", "render_video"]
+__all__ = ["Camera", "CameraConfig", "CameraPath", "FrameInfo", "IceStyle", "Production",
+           "RenderConfig", "render_video"]

@@ -139,7 +139,6 @@ class Trajectory:
 
 def truth_table(traj: Trajectory, rig, path, cams, t_frames, occluded=None) -> pd.DataFrame:
     """One truth row per frame (see :func:`curltrack.render.render_video`)."""
-    traj.align_to_image(path.yaw0 + np.pi / 2)
     world = traj.rock_xy(t_frames)
     xy = traj.to_truth(world)
     C = np.array([c.C for c in cams])
