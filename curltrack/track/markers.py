@@ -1,0 +1,279 @@
+"""Find the rock's coloured markers in a frame: colour model, sub-pixel centroids, identity.
+
+Pixel convention (as :mod:`curltrack.calib.lens`): origin at the centre of the top-left
+pixel, x to the right, y down; positions are in the observed (distorted) image.
+
+Colour model
+------------
+Pixels are classified by their nearest *prototype* colour in CIE Lab (lightness
+half-weighted, so shading matters less than hue): the rig's marker colours (adapted to
+the colours actually seen once markers have been found), the rig's thread colours and
+the local background (median of the search window).  A pixel is a marker candidate when
+it is nearer its marker's prototype than to every other prototype *and* nearer than half
+the way to the background - a threshold relative to the scene, not a fixed number.
+
+Sub-pixel centroid
+------------------
+Around each candidate blob the marker's coverage of every pixel is estimated by
+projecting its RGB value onto the segment background -> marker colour (linear mixing, as
+blur and anti-aliasing produce); the centroid is the coverage-weighted mean position, and
+its 1 sigma follows from the pixel noise measured in the background ring.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..rig import Rig, parse_color
+
+__all__ = ["MarkerDetector", "MarkerFrame", "lab_of_rgb"]
+
+_L_WEIGHT = 0.5
+_ADAPT = 0.15  # weight of a new observation in the running marker colour
+
+
+def lab_of_rgb(rgb) -> np.ndarray:
+    """(R, G, B) 0-255 -> OpenCV 8-bit Lab triple (float), the space used for classifying."""
+    import cv2
+
+    px = np.asarray(rgb, np.uint8).reshape(1, 1, 3)[:, :, ::-1]
+    return cv2.cvtColor(np.ascontiguousarray(px), cv2.COLOR_BGR2Lab).reshape(3).astype(float)
+
+
+def _weigh(lab: np.ndarray) -> np.ndarray:
+    out = lab.astype(np.float32, copy=True)
+    out[..., 0] *= _L_WEIGHT
+    return out
+
+
+@dataclass
+class MarkerFrame:
+    """Markers found in one frame, in rig order.
+
+    Attributes
+    ----------
+    xy_px : (M, 2) array
+        Sub-pixel centroids (observed image px); NaN where a marker was not found.
+    sigma_px : (M,) array
+        1 sigma of each centroid (px, per axis); NaN where not found.
+    area_px : (M,) array
+        Blob areas (px^2).
+    contrast : (M,) array
+        Marker-to-background colour distance (Lab units) - a match-quality figure.
+    message : str
+        Why markers are missing (empty when all were found).
+    """
+
+    xy_px: np.ndarray
+    sigma_px: np.ndarray
+    area_px: np.ndarray
+    contrast: np.ndarray
+    message: str = ""
+
+    @property
+    def found(self) -> np.ndarray:
+        return np.isfinite(self.xy_px).all(axis=1)
+
+
+@dataclass
+class MarkerDetector:
+    """Detect and identify the rig's markers, adapting the colour model as it goes.
+
+    Parameters
+    ----------
+    rig : Rig
+        Marker colours and layout (m, rock frame); thread colours.
+
+    Examples
+    --------
+    >>> det = MarkerDetector(rig)                                   # doctest: +SKIP
+    >>> mf = det.detect(image_bgr)                  # whole frame, first time
+    >>> mf = det.detect(image_bgr, predicted=mf.xy_px, roi=(x0, y0, x1, y1))
+    """
+
+    rig: Rig
+    colors_lab: np.ndarray = field(init=False)
+    area_px: float | None = field(default=None, init=False)
+
+    def __post_init__(self):
+        self.layout_m = np.array([[m.x_m, m.y_m] for m in self.rig.markers])
+        self.ref_lab = np.array([lab_of_rgb(parse_color(m.color)) for m in self.rig.markers])
+        self.colors_lab = self.ref_lab.copy()
+        uniq, self.class_of = np.unique(self.ref_lab.round(1), axis=0, return_inverse=True)
+        self.class_of = self.class_of.ravel()
+        self.n_classes = len(uniq)
+        self.thread_lab = np.array([lab_of_rgb(parse_color(c)) for c in self.rig.grid_colors]
+                                   ).reshape(-1, 3)
+
+    # --- classification --------------------------------------------------------------
+    def _class_masks(self, lab: np.ndarray, bg_lab: np.ndarray) -> list[np.ndarray]:
+        """One boolean mask per marker colour class (nearest-prototype rule)."""
+        class_lab = np.array([self.colors_lab[self.class_of == c].mean(axis=0)
+                              for c in range(self.n_classes)])
+        protos = np.vstack([class_lab, self.thread_lab, bg_lab[None]])
+        w = _weigh(lab)
+        d = np.stack([np.sum((w - _weigh(p)) ** 2, axis=-1) for p in protos], axis=0)
+        nearest = np.argmin(d, axis=0)
+        masks = []
+        for c in range(self.n_classes):
+            half_to_bg = 0.25 * float(np.sum((_weigh(class_lab[c]) - _weigh(bg_lab)) ** 2))
+            masks.append((nearest == c) & (d[c] < half_to_bg))
+        return masks
+
+    # --- public ------------------------------------------------------------------------
+    def detect(self, image_bgr: np.ndarray, predicted: np.ndarray | None = None,
+               roi: tuple | None = None, gate_px: float | None = None) -> MarkerFrame:
+        """Find the markers in ``image_bgr`` (or its ``roi`` = (x0, y0, x1, y1) px).
+
+        Parameters
+        ----------
+        image_bgr : (H, W, 3) uint8
+        predicted : (M, 2) array, optional
+            Predicted centroids (px); candidates are taken nearest to these within
+            ``gate_px``.  Without it the set most consistent with the rig layout wins.
+        roi : tuple of int, optional
+            Search window; the whole frame when None.
+        gate_px : float, optional
+            Largest distance from the prediction (px); default 3 marker radii + 10 px.
+
+        Returns
+        -------
+        MarkerFrame
+        """
+        import cv2
+
+        H, W = image_bgr.shape[:2]
+        x0, y0, x1, y1 = (0, 0, W, H) if roi is None else roi
+        x0, y0 = max(0, int(x0)), max(0, int(y0))
+        x1, y1 = min(W, int(x1)), min(H, int(y1))
+        M = len(self.rig.markers)
+        empty = MarkerFrame(np.full((M, 2), np.nan), np.full(M, np.nan), np.zeros(M),
+                            np.zeros(M), "search window outside the image")
+        if x1 - x0 < 4 or y1 - y0 < 4:
+            return empty
+        patch = image_bgr[y0:y1, x0:x1]
+        lab = cv2.cvtColor(patch, cv2.COLOR_BGR2Lab).astype(np.float32)
+        bg_lab = np.median(lab.reshape(-1, 3), axis=0)
+        masks = self._class_masks(lab, bg_lab)
+        cands = []  # per class: list of (centroid_xy, area) in full-image px
+        for c, mask in enumerate(masks):
+            n, _, stats, cents = cv2.connectedComponentsWithStats(mask.view(np.uint8), 8)
+            areas = stats[1:, cv2.CC_STAT_AREA].astype(float)
+            xy = cents[1:] + (x0, y0)
+            min_area = 3.0 if self.area_px is None else max(3.0, 0.25 * self.area_px)
+            keep = areas >= min_area
+            order = np.argsort(-areas[keep])[:6]
+            cands.append((xy[keep][order], areas[keep][order]))
+        pick = self._assign(cands, predicted, gate_px)
+        xy = np.full((M, 2), np.nan)
+        sig = np.full(M, np.nan)
+        area = np.zeros(M)
+        con = np.zeros(M)
+        for i, (c_xy, c_area) in enumerate(pick):
+            if c_xy is None:
+                continue
+            res = self._refine(image_bgr, lab, (x0, y0), c_xy, c_area, i)
+            if res is not None:
+                xy[i], sig[i], area[i], con[i] = res
+        missing = [self.rig.markers[i].color for i in range(M) if not np.isfinite(xy[i, 0])]
+        msg = f"marker(s) {', '.join(missing)} not found" if missing else ""
+        if not missing:
+            self.area_px = (float(np.median(area)) if self.area_px is None
+                            else 0.9 * self.area_px + 0.1 * float(np.median(area)))
+        return MarkerFrame(xy, sig, area, con, msg)
+
+    # --- identity ----------------------------------------------------------------------
+    def _assign(self, cands, predicted, gate_px):
+        """Choose one candidate blob per marker: by prediction, else by layout."""
+        M = len(self.rig.markers)
+        options = []
+        for i in range(M):
+            c_xy, c_area = cands[self.class_of[i]]
+            opts = [(j, c_xy[j], c_area[j]) for j in range(len(c_xy))]
+            if predicted is not None and np.isfinite(predicted[i]).all():
+                r = np.sqrt((self.area_px or 50.0) / np.pi)
+                gate = gate_px if gate_px is not None else 3.0 * r + 10.0
+                opts = [o for o in opts if np.hypot(*(o[1] - predicted[i])) < gate]
+            options.append(opts[:4] + [None])
+        best, best_cost = None, np.inf
+        for combo in itertools.product(*options):
+            used = [(self.class_of[i], o[0]) for i, o in enumerate(combo) if o is not None]
+            if len(used) != len(set(used)):
+                continue
+            cost = self._cost(combo, predicted)
+            if cost < best_cost:
+                best, best_cost = combo, cost
+        return [(None, 0.0) if o is None else (o[1], o[2]) for o in best]
+
+    def _cost(self, combo, predicted) -> float:
+        n_missing = sum(o is None for o in combo)
+        cost = 1e3 * n_missing
+        found = [i for i, o in enumerate(combo) if o is not None]
+        if predicted is not None:
+            for i in found:
+                if np.isfinite(predicted[i]).all():
+                    cost += float(np.hypot(*(combo[i][1] - predicted[i])))
+        if len(found) >= 2:
+            # Layout consistency: image distances proportional to the rig's distances.
+            ratios = []
+            for a, b in itertools.combinations(found, 2):
+                d_img = np.hypot(*(combo[a][1] - combo[b][1]))
+                d_rig = np.hypot(*(self.layout_m[a] - self.layout_m[b]))
+                ratios.append(d_img / d_rig)
+            ratios = np.array(ratios)
+            spread = float(np.std(ratios) / max(np.mean(ratios), 1e-9)) if len(ratios) > 1 else 0
+            # Blobs of one rock: similar sizes and a consistent scale.
+            areas = np.array([combo[i][2] for i in found])
+            cost += 100.0 * spread + 10.0 * float(np.log(areas.max() / areas.min()))
+            if predicted is None:
+                cost -= 1e-3 * areas.sum()
+        return cost
+
+    # --- sub-pixel -----------------------------------------------------------------------
+    def _refine(self, image_bgr, lab, offset, c_xy, c_area, i):
+        """Coverage-weighted centroid around a blob; (xy, sigma, area, contrast) or None."""
+        H, W = image_bgr.shape[:2]
+        r = max(1.5, np.sqrt(c_area / np.pi))
+        R_in, R_out = 1.6 * r + 1.5, 2.4 * r + 3.0
+        cx, cy = c_xy
+        if min(cx, cy, W - 1 - cx, H - 1 - cy) < R_in:
+            return None  # cut by the image border: its centroid would be biased
+        xa, xb = int(max(0, np.floor(cx - R_out))), int(min(W, np.ceil(cx + R_out) + 1))
+        ya, yb = int(max(0, np.floor(cy - R_out))), int(min(H, np.ceil(cy + R_out) + 1))
+        if xb - xa < 3 or yb - ya < 3:
+            return None
+        win = image_bgr[ya:yb, xa:xb].astype(np.float32)[:, :, ::-1]  # RGB
+        yy, xx = np.mgrid[ya:yb, xa:xb].astype(float)
+        rad = np.hypot(xx - cx, yy - cy)
+        ring = (rad > R_in) & (rad <= R_out)
+        core = rad <= 0.6 * r
+        if ring.sum() < 8 or core.sum() < 1:
+            return None
+        bg = np.median(win[ring], axis=0)
+        col = np.median(win[core], axis=0)
+        d = col - bg
+        dd = float(d @ d)
+        if dd < 25.0:  # < 5 grey levels apart: no usable contrast
+            return None
+        noise = 1.4826 * np.median(np.abs(win[ring] - bg), axis=0).mean()
+        for _ in range(2):
+            s = (win - bg) @ d / dd
+            perp = np.linalg.norm(win - bg - s[..., None] * d, axis=-1)
+            w = np.clip(s, 0.0, 1.0) * (perp < 0.35 * np.sqrt(dd) + 2 * noise)
+            w = w * (np.hypot(xx - cx, yy - cy) <= R_in)
+            sw = w.sum()
+            if sw <= 0.5:
+                return None
+            cx, cy = (w * xx).sum() / sw, (w * yy).sum() / sw
+        sigma_w = max(noise, 0.5) / np.sqrt(dd)
+        inside = np.hypot(xx - cx, yy - cy) <= R_in
+        r2 = ((xx - cx) ** 2 + (yy - cy) ** 2)[inside].sum()
+        sigma = float(sigma_w * np.sqrt(r2 / 2.0) / sw)
+        # Adapt the colour model to what the camera shows (slowly, and only when sure).
+        obs_lab = lab_of_rgb(np.clip(col, 0, 255))
+        self.colors_lab[i] = (1 - _ADAPT) * self.colors_lab[i] + _ADAPT * obs_lab
+        contrast = float(np.linalg.norm(_weigh(obs_lab) - _weigh(lab_of_rgb(np.clip(bg, 0, 255)))))
+        return np.array([cx, cy]), sigma, float(sw), contrast

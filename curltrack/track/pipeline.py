@@ -1,0 +1,293 @@
+"""The per-frame loop: video -> grid pose + markers -> rock centre and angle -> Series.
+
+Data flow (one way, streamed; only small per-frame records are kept)::
+
+    iter_frames -> MarkerDetector (rock in the image) -> GridTracker (rock masked)
+      -> markers on the ice (lattice frame) -> similarity fit: apparent centre, angle,
+         layout scale -> [after the loop] parallax (camera height, nadir)
+      -> shot frame -> stops -> Series (SHOT.csv columns + sidecar)
+
+The tracker never reads renderer truth: everything comes from the pixels and the rig.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import TrackingError
+from ..rig import Rig
+from .markers import MarkerDetector
+
+__all__ = ["track_video", "FrameRecord"]
+
+#: Full-frame marker search: every frame at first, then every n-th frame while lost.
+SEARCH_EVERY = 5
+#: Frames without markers (from the start) after which the video is declared unusable.
+GIVE_UP_FRAMES = 90
+
+
+@dataclass
+class FrameRecord:
+    """What one frame contributed (small; one per frame is kept)."""
+
+    frame: int
+    t: float
+    status: str = ""  # "" = measured, else the reason it is not
+    markers_px: np.ndarray | None = None  # (M, 2) observed px
+    H: np.ndarray | None = None  # undistorted px -> lattice m
+    centre_app: np.ndarray | None = None  # apparent rock axis on the ice (m)
+    phi: float = np.nan  # angle against the lattice (rad)
+    scale: float = np.nan  # apparent layout scale H/(H-h)
+    sigma_m: float = np.nan  # 1 sigma of one marker on the ice (m)
+    grid_sigma_m: float = np.nan  # 1 sigma of the homography at the image centre (m)
+    spacing_px: float = np.nan
+    contrast: float = np.nan
+    notes: list = field(default_factory=list)
+
+
+class _Follower:
+    """Marker prediction and search window from the last measured frames."""
+
+    def __init__(self, det: MarkerDetector, rig: Rig):
+        self.det, self.rig = det, rig
+        self.hist: list[tuple[int, np.ndarray]] = []  # (frame, (M, 2) px)
+        self.lost = 0
+
+    def predicted(self, frame: int):
+        if not self.hist:
+            return None
+        if len(self.hist) == 1:
+            return self.hist[-1][1]
+        (f0, p0), (f1, p1) = self.hist[-2:]
+        return p1 + (p1 - p0) * (frame - f1) / max(f1 - f0, 1)
+
+    def rock_px(self, frame: int):
+        """(centre px, radius px) of the rock's top in the image, or None."""
+        p = self.predicted(frame)
+        if p is None:
+            return None
+        L = self.det.layout_m
+        sep_px = np.hypot(*(p[0] - p[1]))
+        sep_m = np.hypot(*(L[0] - L[1]))
+        px_per_m = sep_px / sep_m
+        # rock axis in the image: the layout's origin under the image similarity
+        a = (L - L.mean(0))
+        b = (p - p.mean(0))
+        z = np.vdot(a[:, 0] + 1j * a[:, 1], b[:, 0] + 1j * b[:, 1]) / np.sum(a ** 2)
+        c = p.mean(0) - np.array([(z * complex(*L.mean(0))).real,
+                                  (z * complex(*L.mean(0))).imag])
+        return c, 0.5 * self.rig.rock_diameter_m * px_per_m
+
+    def detect(self, image, frame):
+        pred = self.predicted(frame)
+        if pred is None or self.lost > 3:
+            if self.lost % SEARCH_EVERY and self.lost > 3:
+                self.lost += 1
+                return None
+            mf = self.det.detect(image)
+        else:
+            c, r = self.rock_px(frame)
+            m = 1.3 * r + 20
+            mf = self.det.detect(image, predicted=pred,
+                                 roi=(c[0] - m, c[1] - m, c[0] + m + 1, c[1] + m + 1))
+        if mf.found.all():
+            self.hist = (self.hist + [(frame, mf.xy_px.copy())])[-2:]
+            self.lost = 0
+        else:
+            self.lost += 1
+        return mf
+
+    def mask(self, shape, frame):
+        """uint8 mask (nonzero = ignore) of the rock and its surroundings for the grid."""
+        import cv2
+
+        m = np.zeros(shape[:2], np.uint8)
+        rp = self.rock_px(frame)
+        if rp is not None:
+            (cx, cy), r = rp
+            # the rock's side shows too under parallax: generous margin
+            cv2.circle(m, (int(round(cx)), int(round(cy))), int(np.ceil(1.35 * r + 8)), 255, -1)
+        return m
+
+
+def _calibrate(image, rig, mask, frame, path):
+    from ..calib import calibrate_frame
+
+    try:
+        return calibrate_frame(image, rig, mask=mask), ""
+    except TrackingError as exc:
+        return None, exc.message
+
+
+def track_frames(frames, rig: Rig, path=None, n_expected: int | None = None,
+                 progress=None) -> tuple[list[FrameRecord], dict]:
+    """Run the per-frame loop over an iterable of :class:`curltrack.video.Frame`.
+
+    Returns
+    -------
+    (records, info) : list of FrameRecord, dict
+        ``info`` holds the calibration (``calib``) and the focal/principal point data.
+    """
+    from ..calib import GridTracker
+    from .parallax import similarity_fit
+
+    det = MarkerDetector(rig)
+    fol = _Follower(det, rig)
+    tracker = None
+    calib = None
+    calib_msg = ""
+    records: list[FrameRecord] = []
+    L = det.layout_m
+    seen_markers = False
+    for fr in frames:
+        rec = FrameRecord(fr.index, fr.t)
+        records.append(rec)
+        if progress is not None:
+            progress(1)
+        img = fr.image
+        mf = fol.detect(img, fr.index)
+        if mf is None or not mf.found.all():
+            rec.status = ("rock/markers not found" if mf is None else
+                          f"markers not found ({mf.message})")
+            if not seen_markers and len(records) >= GIVE_UP_FRAMES:
+                raise TrackingError(
+                    f"no markers of the rig's colours ({', '.join(m.color for m in rig.markers)})"
+                    f" found in frames {records[0].frame}-{fr.index}", path=path,
+                    where=f"frame {fr.index}")
+            continue
+        seen_markers = True
+        mask = fol.mask(img.shape, fr.index)
+        if tracker is None:
+            calib, calib_msg = _calibrate(img, rig, mask, fr.index, path)
+            if calib is None:
+                rec.status = f"grid not found ({calib_msg})"
+                if len(records) >= GIVE_UP_FRAMES:
+                    raise TrackingError(f"no grid found in frames {records[0].frame}-"
+                                        f"{fr.index}: {calib_msg}", path=path,
+                                        where=f"frame {fr.index}")
+                continue
+            tracker = GridTracker(calib, rig)
+        pose = tracker.update(img, fr.index, mask=mask)
+        rec.markers_px = mf.xy_px
+        rec.H = pose.H
+        rec.spacing_px = pose.spacing_px
+        if not pose.ok:
+            rec.status = f"grid: {pose.message}"
+            continue
+        ice = pose.image_to_ice(mf.xy_px)
+        c, phi, s, _ = similarity_fit(L, ice)
+        mpp = pose.metres_per_px(np.nanmean(mf.xy_px, axis=0))
+        rec.centre_app, rec.phi, rec.scale = c, phi, s
+        rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
+        rec.grid_sigma_m = (pose.sigma_px if np.isfinite(pose.sigma_px) else 0.3) * mpp
+        rec.contrast = float(np.min(mf.contrast))
+        if pose.message:
+            rec.notes.append(pose.message)
+    return records, {"calib": calib, "calib_msg": calib_msg, "n_markers": len(L)}
+
+
+def track_video(video_path, rig: Rig, start_frame: int | None = None,
+                end_frame: int | None = None, exclude_frames=(), overlay_path=None,
+                progress: bool = False):
+    """Track a shot video: x(t), y(t), theta(t) in the shot frame, with stop times.
+
+    Parameters
+    ----------
+    video_path : path
+        Overhead video of the shot.
+    rig : Rig
+        Grid, rock and marker layout; camera height / fps when known.
+    start_frame : int, optional
+        The release frame (t = 0); default the first frame.
+    end_frame : int, optional
+        Last frame to track (inclusive); default the last frame of the video.
+    exclude_frames : iterable of int
+        Frames to skip (kept as ``ok`` = 0 rows).
+    overlay_path : path, optional
+        Write an annotated video there (second pass over the video).
+    progress : bool
+        Show a progress bar (rich) on stderr.
+
+    Returns
+    -------
+    Series
+        Contract columns ``frame, t, x, y, theta, ok`` + ``sigma_xy`` (m),
+        ``sigma_theta`` (rad), ``quality`` (0-1) and the sidecar (stops, camera height,
+        warnings...).
+
+    Raises
+    ------
+    VideoError
+        Unreadable/truncated video, bad frame range.
+    TrackingError
+        No markers of the rig's colours, no grid, or the rock never measurable.
+    """
+    from ..video import iter_frames, probe_video
+    from .results import build_series
+
+    info = probe_video(video_path, fps_override=rig.fps)
+    start = int(start_frame or 0)
+    end = info.n_frames if end_frame is None else int(end_frame) + 1
+    if not 0 <= start < info.n_frames:
+        from ..errors import VideoError
+
+        raise VideoError(f"start frame {start} outside 0..{info.n_frames - 1}",
+                         path=video_path, where="--start-frame")
+    if end <= start:
+        from ..errors import VideoError
+
+        raise VideoError(f"end frame {end - 1} is before start frame {start}",
+                         path=video_path, where="--end-frame")
+    end = min(end, info.n_frames)
+    exclude = sorted({int(i) for i in exclude_frames if start <= int(i) < end})
+    frames = iter_frames(video_path, start=start, end=end, exclude=exclude,
+                         fps_override=rig.fps)
+    total = end - start - len(exclude)
+    bar = _progress_bar(total, str(video_path)) if progress else None
+    try:
+        records, loop_info = track_frames(frames, rig, path=video_path, n_expected=total,
+                                          progress=bar[1] if bar else None)
+    finally:
+        if bar:
+            bar[0].stop()
+    # Excluded frames are rows too (ok = 0), at their nominal time.
+    dt = 1.0 / info.fps
+    by_frame = {r.frame: r for r in records}
+    t_of = _time_interpolator(records, start, dt)
+    for i in exclude:
+        by_frame[i] = FrameRecord(i, t_of(i), status="excluded by the user")
+    records = [by_frame[i] for i in sorted(by_frame)]
+    series = build_series(records, rig, info, start, loop_info, path=video_path)
+    if overlay_path is not None:
+        from .overlay import write_overlay
+
+        write_overlay(video_path, overlay_path, records, series, loop_info, rig,
+                      start=start, end=end, exclude=exclude)
+    return series
+
+
+def _time_interpolator(records, start, dt):
+    frames = np.array([r.frame for r in records], float)
+    times = np.array([r.t for r in records], float)
+
+    def t_of(i):
+        if frames.size >= 2:
+            return float(np.interp(i, frames, times, left=np.nan, right=np.nan)) if \
+                frames[0] <= i <= frames[-1] else float(times[0] + (i - frames[0]) * dt) \
+                if i < frames[0] else float(times[-1] + (i - frames[-1]) * dt)
+        return float((i - start) * dt)
+
+    return t_of
+
+
+def _progress_bar(total: int, name: str):
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
+                               TimeRemainingColumn)
+
+    prog = Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(),
+                    TimeRemainingColumn(), transient=True)
+    task = prog.add_task(name, total=total)
+    prog.start()
+    return prog, (lambda n: prog.advance(task, n))

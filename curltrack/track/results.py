@@ -1,0 +1,151 @@
+"""Per-frame records -> the contract's Series: parallax, shot frame, sigmas, stops, sidecar."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .. import __version__
+from ..errors import TrackingError
+from ..rig import Rig
+from ..series import Series, make_meta
+from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, correct_parallax,
+                       estimate_height, focal_for_height)
+from .shotframe import to_shot_frame
+from .stops import detect_stops
+
+__all__ = ["build_series", "frame_ranges"]
+
+#: Frames whose layout scale is this many robust sigmas off the video's are rejected.
+SCALE_OUTLIER_SIGMA = 6.0
+MIN_MEASURED = 8
+
+
+def frame_ranges(frames) -> str:
+    """[1, 2, 3, 7] -> "1-3, 7"."""
+    frames = sorted(int(f) for f in frames)
+    out, i = [], 0
+    while i < len(frames):
+        j = i
+        while j + 1 < len(frames) and frames[j + 1] == frames[j] + 1:
+            j += 1
+        out.append(str(frames[i]) if i == j else f"{frames[i]}-{frames[j]}")
+        i = j + 1
+    return ", ".join(out)
+
+
+def _height(records, ok, rig: Rig, depth_eff: float, warnings: list) -> HeightEstimate:
+    h_eff = rig.rock_height_m + depth_eff
+    if rig.camera_height_m is not None:
+        H = rig.camera_height_m + depth_eff
+        return HeightEstimate(H, 0.0, (H - h_eff) / H, 0.0, 0, from_rig=True)
+    scales = np.array([records[i].scale for i in np.flatnonzero(ok)])
+    sig = np.array([records[i].sigma_m for i in np.flatnonzero(ok)])
+    est = estimate_height(scales, h_eff, weights=1.0 / np.maximum(sig, 1e-6) ** 2)
+    if est is None:
+        warnings.append("camera height could not be estimated from the marker layout "
+                        "(set [camera].height_m in the rig); no parallax correction applied")
+        return HeightEstimate(np.inf, np.inf, 1.0, np.inf, 0)
+    return est
+
+
+def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None) -> Series:
+    """Assemble the Series (see :func:`curltrack.track.track_video` for the columns)."""
+    n = len(records)
+    warnings: list[str] = []
+    frame = np.array([r.frame for r in records])
+    t = np.array([r.t for r in records], float)
+    ok = np.array([r.status == "" for r in records])
+    # Reject frames whose apparent layout scale disagrees with the video's (a wrong
+    # marker identity or a bad homography changes it).
+    scale = np.array([r.scale for r in records])
+    if ok.sum() >= 5:
+        med = np.median(scale[ok])
+        mad = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
+        bad = ok & (np.abs(scale - med) > SCALE_OUTLIER_SIGMA * max(mad, 1e-4))
+        for i in np.flatnonzero(bad):
+            records[i].status = "marker layout inconsistent with the rest of the video"
+        ok &= ~bad
+    if ok.sum() < MIN_MEASURED:
+        reasons = sorted({r.status for r in records if r.status})
+        raise TrackingError(f"the rock could be measured in only {int(ok.sum())} of {n} "
+                            f"frames ({'; '.join(reasons)[:200]})", path=path)
+    depth_eff = rig.grid_depth_m / ICE_REFRACTIVE_INDEX
+    est = _height(records, ok, rig, depth_eff, warnings)
+    calib = loop_info["calib"]
+    pp = calib.K[:2, 2]
+    idx = np.flatnonzero(ok)
+    f_px = np.nan
+    nadir = np.full((n, 2), np.nan)
+    if np.isfinite(est.height_m):
+        fs = np.array([focal_for_height(records[i].H, est.height_m, pp) for i in idx])
+        f_px = float(np.nanmedian(fs)) if np.isfinite(fs).any() else np.nan
+        if np.isfinite(f_px):
+            for i in idx:
+                nadir[i] = camera_centre(records[i].H, f_px, pp)[:2]
+    centre = np.full((n, 2), np.nan)
+    phi = np.full(n, np.nan)
+    for i in idx:
+        r = records[i]
+        nd = nadir[i] if np.isfinite(nadir[i]).all() else r.centre_app
+        centre[i] = correct_parallax(r.centre_app, nd, est.k)
+        phi[i] = r.phi
+    # image up direction in the lattice frame (first measured frame), for a still rock
+    r0 = records[idx[0]]
+    from ..calib.lens import apply_h, undistort
+
+    p0 = undistort(np.nanmean(r0.markers_px, axis=0)[None], calib.K, calib.dist)
+    a, b = apply_h(r0.H, np.vstack([p0, p0 + (0.0, -10.0)]))
+    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a)
+    # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
+    M = loop_info["n_markers"]
+    L = np.array([[m.x_m, m.y_m] for m in rig.markers])
+    lever = np.sqrt(np.sum((L - L.mean(0)) ** 2))
+    sig_m = np.array([r.sigma_m for r in records])
+    sig_g = np.array([r.grid_sigma_m for r in records])
+    sigma_xy = est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2)
+    sigma_theta = sig_m / max(lever, 1e-6)
+    med = np.median(scale[ok])
+    spread = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
+    contrast = np.array([r.contrast for r in records])
+    quality = (np.exp(-0.5 * ((scale - med) / max(spread, 1e-4)) ** 2)
+               * np.clip(contrast / 40.0, 0.0, 1.0))
+    data = pd.DataFrame({
+        "frame": frame, "t": t, "x": shot["x"], "y": shot["y"], "theta": shot["theta"],
+        "ok": ok.astype(int),
+        "sigma_xy": np.where(ok, sigma_xy, np.nan),
+        "sigma_theta": np.where(ok, sigma_theta, np.nan),
+        "quality": np.where(ok, quality, np.nan),
+    })
+    # warnings for lost frames, grouped by reason
+    by_reason: dict[str, list[int]] = {}
+    for r in records:
+        if r.status:
+            by_reason.setdefault(r.status, []).append(r.frame)
+    for reason, frs in by_reason.items():
+        warnings.append(f"{path}: frame(s) {frame_ranges(frs)}: {reason} (ok = 0)")
+    stops = detect_stops(data, info.fps)
+    for note in stops.notes:
+        warnings.append(f"stops: {note}")
+    cam_h = est.height_m - depth_eff if np.isfinite(est.height_m) else None
+    spacing = np.array([r.spacing_px for r in records], float)
+    meta = make_meta(info.fps, n, start_frame=start, **stops.to_meta())
+    meta.update(
+        camera_height_m=cam_h,
+        camera_height_err_m=(est.height_err_m if np.isfinite(est.height_err_m) else None),
+        camera_height_source="rig" if est.from_rig else "markers",
+        parallax_factor=est.k, parallax_factor_err=est.k_err,
+        focal_px=f_px,
+        grid_spacing_px=float(np.nanmedian(spacing)) if np.isfinite(spacing).any() else None,
+        frames_lost=int((~ok).sum()), warnings=warnings, version=__version__,
+        video=str(path) if path is not None else None,
+        n_frames_video=info.n_frames, codec=info.codec,
+        frame_origin_lattice_m=shot["origin"].tolist(),
+        frame_x_axis_lattice=shot["x_hat"].tolist(),
+        frame_y_axis_lattice=shot["y_hat"].tolist(),
+        frame_axis_source=shot["direction_source"],
+        theta0_lattice_rad=shot["theta0"],
+    )
+    if calib is not None:
+        meta["lens_k1"], meta["lens_k2"] = float(calib.dist[0]), float(calib.dist[1])
+    return Series(data, meta, None)

@@ -1,0 +1,130 @@
+"""Lattice frame -> the contract's shot frame; cumulative angle.
+
+Shot frame (contract): origin = rock centre at t = 0 (from a local fit to the first
+frames, not one noisy frame), +y = the lattice axis closest to the initial direction of
+travel (for a rock that does not translate: the lattice axis closest to the image's up
+direction), +x to the right of +y, theta(0) = 0, CCW seen from above.  The lattice frame
+is right-handed seen from above too, so the change of frame is a rotation by a multiple
+of 90 deg plus a shift, and angles measured against the lattice carry over unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["unwrap_angle", "initial_state", "choose_axes", "to_shot_frame"]
+
+#: Displacement (m) below which a rock is taken not to translate (axis from the image).
+MIN_TRAVEL_M = 0.05
+
+
+def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Cumulative angle from wrapped angles, robust to gaps: each step takes the 2 pi
+    branch nearest the prediction from the last angular velocity.
+
+    Parameters
+    ----------
+    t : (N,) array
+        Times (s), increasing, no NaN.
+    phi : (N,) array
+        Angles (rad), any branch.
+    """
+    out = np.empty_like(phi, dtype=float)
+    if phi.size == 0:
+        return out
+    out[0] = phi[0]
+    omega = 0.0
+    for i in range(1, phi.size):
+        pred = out[i - 1] + omega * (t[i] - t[i - 1])
+        out[i] = phi[i] + 2 * np.pi * np.round((pred - phi[i]) / (2 * np.pi))
+        if t[i] > t[i - 1]:
+            omega = (out[i] - out[i - 1]) / (t[i] - t[i - 1])
+    return out
+
+
+def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.5, min_points: int = 6):
+    """Value and rate at t = 0 from a quadratic fit to the first ``window_s`` seconds.
+
+    Parameters
+    ----------
+    t : (N,) array
+        Times of measured frames (s).
+    q : (N,) or (N, k) array
+        Coordinates.
+
+    Returns
+    -------
+    (q0, rate0) : arrays of shape (k,)
+    """
+    q = np.asarray(q, float)
+    q2 = q[:, None] if q.ndim == 1 else q
+    n = max(min_points, int(np.count_nonzero(t <= t[0] + window_s)))
+    n = min(n, t.size)
+    tt, qq = t[:n], q2[:n]
+    deg = 2 if n >= 6 else (1 if n >= 2 else 0)
+    A = np.vander(tt, deg + 1, increasing=True)
+    coef, *_ = np.linalg.lstsq(A, qq, rcond=None)
+    q0 = coef[0]
+    rate = coef[1] if deg >= 1 else np.zeros_like(q0)
+    return q0, rate
+
+
+def choose_axes(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lattice unit axes (x_hat, y_hat) of the shot frame: +y = the lattice axis (of
+    +-x, +-y) closest to ``direction``; +x = +y turned 90 deg clockwise."""
+    axes = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+    y_hat = axes[int(np.argmax(axes @ direction))]
+    x_hat = np.array([y_hat[1], -y_hat[0]])
+    return x_hat, y_hat
+
+
+def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.ndarray,
+                  up_direction: np.ndarray | None = None) -> dict:
+    """Convert lattice-frame centres and angles into the shot frame.
+
+    Parameters
+    ----------
+    t : (N,) array
+        Times (s).
+    centre : (N, 2) array
+        Rock centre in the lattice frame (m); any value where not ``ok``.
+    phi : (N,) array
+        Rock angle against the lattice (rad, wrapped or not).
+    ok : (N,) bool array
+    up_direction : (2,) array, optional
+        The image's up direction in the lattice frame (used when the rock does not
+        translate).
+
+    Returns
+    -------
+    dict
+        ``x``, ``y``, ``theta`` (N,) with NaN where not ok; ``origin`` (2,) and
+        ``x_hat``, ``y_hat`` (lattice-frame unit vectors), ``theta0`` (rad),
+        ``direction_source`` ("travel" or "image up").
+    """
+    ok = np.asarray(ok, bool)
+    idx = np.flatnonzero(ok)
+    tt, cc = t[idx], centre[idx]
+    th = unwrap_angle(tt, phi[idx])
+    (x0, y0, th0), (vx, vy, _) = initial_state(tt, np.column_stack([cc, th]))
+    origin = np.array([x0, y0])
+    disp = cc - origin
+    reach = np.hypot(*disp.T)
+    if reach.size and reach.max() > MIN_TRAVEL_M:
+        v = np.array([vx, vy])
+        # A rate from 0.5 s of noisy frames may be poor for slow rocks: fall back on the
+        # displacement to where the rock first gets MIN_TRAVEL_M away.
+        first_far = disp[int(np.flatnonzero(reach > MIN_TRAVEL_M)[0])]
+        direction = v if np.hypot(*v) * 0.5 > MIN_TRAVEL_M else first_far
+        source = "travel"
+    else:
+        direction = up_direction if up_direction is not None else np.array([0.0, 1.0])
+        source = "image up"
+    x_hat, y_hat = choose_axes(np.asarray(direction, float))
+    x = np.full(t.shape, np.nan)
+    y = np.full(t.shape, np.nan)
+    theta = np.full(t.shape, np.nan)
+    x[idx], y[idx] = disp @ x_hat, disp @ y_hat
+    theta[idx] = th - th0
+    return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
+            "y_hat": y_hat, "theta0": float(th0), "direction_source": source}
