@@ -103,9 +103,10 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     for cand in cands:
         sc = score_candidate(base, fit0, cand, seg_slices, rng, n_boot=n_boot, name=names)
         if sc.fit is not None:
-            sc.heldout = {"time": heldout(sc.fit, f_time, base)}
+            fixed = [p.name for p in cand.location]
+            sc.heldout = {"time": heldout(sc.fit, f_time, base, fixed)}
             if f_shot is not None:
-                sc.heldout["shot"] = heldout(sc.fit, f_shot, base)
+                sc.heldout["shot"] = heldout(sc.fit, f_shot, base, fixed)
         scores.append(sc)
 
     from .report import build_report

@@ -150,7 +150,7 @@ def build_candidates(shots, baseline: str) -> list:
         out.append(Candidate("ice_slope", size, note=note))
         y_max = max(float(np.nanmax(s.obs["y"][s.use["y"]])) for s in translating)
         if y_max > 1.0:
-            nodes = np.linspace(0.0, y_max, 15)
+            nodes = np.linspace(0.0, y_max, 21)
             grid = [{"y_start_m": float(a), "y_end_m": float(b)}
                     for i, a in enumerate(nodes) for b in nodes[i + 1:]
                     if b - a <= 0.75 * y_max]

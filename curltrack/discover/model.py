@@ -103,6 +103,24 @@ class FitOut:
         return float(np.sqrt(max(self.cov[i, i], 0.0))) if i is not None else 0.0
 
 
+def covariance(J) -> np.ndarray:
+    """(J^T J)^-1 computed on unit-norm columns (parameters differ by 10 orders of
+    magnitude in scale); NaN when singular."""
+    d = np.linalg.norm(J, axis=0)
+    d = np.where(d > 0, d, 1.0)
+    try:
+        u, s, vt = np.linalg.svd(J / d, full_matrices=False)
+    except np.linalg.LinAlgError:
+        return np.full((J.shape[1],) * 2, np.nan)
+    if s.size == 0 or s[-1] < 1e-10 * s[0]:
+        inv = np.where(s > 1e-10 * s[0], 1.0 / np.maximum(s, 1e-300) ** 2, np.inf)
+    else:
+        inv = 1.0 / s**2
+    with np.errstate(invalid="ignore"):
+        c = (vt.T * inv) @ vt
+    return c / d[:, None] / d[None, :]
+
+
 class JointModel:
     """Baseline (+ one candidate) over all shots.
 
@@ -274,7 +292,7 @@ class JointModel:
             J[:, k] = (vec - base_vec) / h
         return J
 
-    def fit(self, max_nfev: int = 60, name: str = "<shots>") -> FitOut:
+    def fit(self, max_nfev: int = 60, name: str = "<shots>", tol: float = 1e-8) -> FitOut:
         """Weighted least squares of all free parameters from the current values.
 
         Raises
@@ -306,10 +324,11 @@ class JointModel:
 
         try:
             res = least_squares(fun, p0, jac=jac, bounds=(lo, hi), x_scale="jac",
-                                max_nfev=max_nfev, method="trf")
+                                max_nfev=max_nfev, method="trf", ftol=tol, xtol=tol, gtol=tol)
         except (ValueError, FloatingPointError, ZeroDivisionError) as exc:
             raise FitError(f"model fit failed ({exc})".splitlines()[0], path=name) from None
         self.values = self.with_vector(res.x)
+        self.nfev = (res.nfev, res.njev)
         vec, preds = self._model_vector(self.values)
         r_raw = data - vec
         r = self.whiten(r_raw)
@@ -319,10 +338,7 @@ class JointModel:
         J = self.whiten(J_raw)
         chi2 = float(r @ r)
         dof = max(self.n - len(self.free), 1)
-        try:
-            cov = np.linalg.pinv(J.T @ J)
-        except np.linalg.LinAlgError:
-            cov = np.full((len(self.free),) * 2, np.nan)
+        cov = covariance(J)
         cov = cov * max(1.0, chi2 / dof)
         return FitOut(dict(self.values), list(self.free), cov, chi2, self.n, r, J, r_raw,
                       J_raw, preds, bool(res.success), str(res.message))

@@ -67,7 +67,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
              "heldout_rmse_before": h0["scalar"], "heldout_rmse_after": None,
              "heldout_before_by_coord": {c: h0[c] for c in COORDS},
              "heldout_after_by_coord": None, "params": sc.params, "params_err": sc.params_err,
-             "note": sc.note}
+             "note": sc.note, "nfev": sc.nfev}
         if sc.fit is not None:
             f["rms_after"] = _rms_by_coord(base, sc.fit.r_raw)
             f["heldout_rmse_after"] = sc.heldout["time"]["scalar"]
