@@ -122,7 +122,12 @@ def block_resample(r, segments, rng, n_boot: int = N_BOOT, block: int = BLOCK_FR
         n_blocks = -(-m // b)
         starts = rng.integers(0, m, size=(n_blocks, n_boot))
         idx = (starts[:, None, :] + np.arange(b)[None, :, None]) % m
-        out[sl] = seg[idx.reshape(-1, n_boot)[:m]]
+        boot = seg[idx.reshape(-1, n_boot)[:m]]
+        # whitened residuals have unit variance by construction (noise from the data);
+        # a segment whose residuals happen to scatter less is not allowed to lower the
+        # threshold, one that scatters more (structure, heavier noise) raises it
+        scale = max(float(np.sqrt(np.mean(seg**2))), 1.0) / max(float(np.sqrt(np.mean(seg**2))), 1e-12)
+        out[sl] = boot * scale
     return out
 
 
