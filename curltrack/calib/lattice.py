@@ -20,7 +20,10 @@ from .lens import apply_h, undistort
 
 
 def _spectrum_peak(mag, fx, fy, exclude_dir=None, min_angle_deg: float = 25.0):
-    """Strongest spectral peak (fx, fy) in cycles/px, optionally away from a direction."""
+    """Strongest spectral peak (fx, fy) in cycles/px, optionally away from a direction.
+
+    The peak may be a harmonic; :func:`_fundamental_period` finds the period itself.
+    """
     m = mag.copy()
     if exclude_dir is not None:
         ang = np.arctan2(fy, fx)
@@ -28,17 +31,42 @@ def _spectrum_peak(mag, fx, fy, exclude_dir=None, min_angle_deg: float = 25.0):
                    - np.pi / 2)
         m[d < np.radians(min_angle_deg)] = 0
     i = np.unravel_index(np.argmax(m), m.shape)
-    k = np.array([fx[i], fy[i]])
-    # Prefer the fundamental: a peak at k/m for m = 3, 2 with comparable height.
-    for mult in (3, 2):
-        kk = k / mult
-        d2 = (fx - kk[0]) ** 2 + (fy - kk[1]) ** 2
-        j = np.unravel_index(np.argmin(np.where(m > 0, d2, np.inf)), m.shape)
-        near = (d2 < (1.5 * abs(fx[0, 1] - fx[0, 0])) ** 2 + (1.5 * abs(fy[1, 0] - fy[0, 0])) ** 2)
-        if near.any() and m[near].max() > 0.3 * m[i]:
-            jj = np.argmax(np.where(near, m, -1))
-            return np.array([fx.ravel()[jj], fy.ravel()[jj]]), float(m.ravel()[jj])
-    return k, float(m[i])
+    return np.array([fx[i], fy[i]]), float(m[i])
+
+
+def _fundamental_period(rel, w, normal, min_period, max_period):
+    """Period (px) of the threads across ``normal``: first strong autocorrelation peak.
+
+    The weighted histogram of the pixels' positions along the normal (0.5 px bins) of a
+    set of parallel threads is periodic; its autocorrelation peaks at the period and its
+    multiples.  Returns None without a clear peak.
+    """
+    s = rel @ normal
+    lo, hi = s.min(), s.max()
+    if hi - lo < 2 * min_period:
+        return None
+    bins = np.arange(lo, hi + 0.5, 0.5)
+    h, _ = np.histogram(s, bins=bins, weights=w)
+    h = h - h.mean()
+    n = 1 << int(np.ceil(np.log2(2 * len(h))))
+    F = np.fft.rfft(h, n)
+    ac = np.fft.irfft(F * np.conj(F), n)[:len(h)]
+    ac /= np.arange(len(h), 0, -1)  # unbiased: fewer overlapping bins at long lags
+    lags = np.arange(len(h)) * 0.5
+    ok = (lags >= min_period) & (lags <= min(max_period, 0.5 * (hi - lo)))
+    if not ok.any() or ac[0] <= 0:
+        return None
+    idx = np.nonzero(ok)[0]
+    top = ac[idx].max()
+    if top < 0.2 * ac[0]:
+        return None
+    for i in idx[1:-1]:
+        if ac[i] >= 0.6 * top and ac[i] >= ac[i - 1] and ac[i] >= ac[i + 1]:
+            # parabolic sub-bin refinement
+            den = ac[i - 1] - 2 * ac[i] + ac[i + 1]
+            d = 0.5 * (ac[i - 1] - ac[i + 1]) / den if den < 0 else 0.0
+            return float((i + d) * 0.5)
+    return None
 
 
 def _refine_wavevector(xs, w, k, n_steps: int = 5):
@@ -101,7 +129,13 @@ def initial_lattice(resp, xs, w, centre):
         near = np.ones(len(xs), bool)
     rows = []
     for k in (k1, k2):
-        k, s = _refine_wavevector(rel[near], w[near], k)
+        normal = k / np.linalg.norm(k)
+        period = _fundamental_period(rel[near], w[near], normal, min_period, max_period)
+        if period is None:
+            period = _fundamental_period(rel, w, normal, min_period, max_period)
+        if period is None:
+            return None
+        k, s = _refine_wavevector(rel[near], w[near], normal / period)
         rows.append([k[0], k[1], -s])
     return np.array(rows)
 
@@ -122,21 +156,26 @@ def assign_families(a, b, pa, pb, band_px, cross_px=None):
 
 
 def _residuals(Hc, q, fam_a, fam_b, ia, ib, pa, pb):
-    ab = apply_h(Hc, q)
-    return np.concatenate([(ab[fam_a, 0] - ia[fam_a]) * pa, (ab[fam_b, 1] - ib[fam_b]) * pb])
+    a = apply_h(Hc, q[fam_a])[:, 0]
+    b = apply_h(Hc, q[fam_b])[:, 1]
+    return np.concatenate([(a - ia[fam_a]) * pa, (b - ib[fam_b]) * pb])
 
 
 def _h_jacobian(Hc, q, fam_a, fam_b, pa, pb):
-    """d(residual)/d(h0..h7) for the homography, analytic."""
-    X = np.column_stack([q, np.ones(len(q))]) @ Hc.T
-    wq = X[:, 2]
-    a, b = X[:, 0] / wq, X[:, 1] / wq
-    qx, qy = q[:, 0] / wq, q[:, 1] / wq
-    one = 1.0 / wq
-    z = np.zeros(len(q))
-    ja = np.column_stack([qx, qy, one, z, z, z, -a * qx, -a * qy])[fam_a] * pa
-    jb = np.column_stack([z, z, z, qx, qy, one, -b * qx, -b * qy])[fam_b] * pb
-    return np.vstack([ja, jb])
+    """d(residual)/d(h0..h7) for the homography, analytic (rows: family A then B)."""
+    out = []
+    for fam, row, p in ((fam_a, 0, pa), (fam_b, 1, pb)):
+        x, y = q[fam, 0], q[fam, 1]
+        wq = Hc[2, 0] * x + Hc[2, 1] * y + Hc[2, 2]
+        val = (Hc[row, 0] * x + Hc[row, 1] * y + Hc[row, 2]) / wq
+        J = np.zeros((len(x), 8))
+        J[:, 3 * row] = p * x / wq
+        J[:, 3 * row + 1] = p * y / wq
+        J[:, 3 * row + 2] = p / wq
+        J[:, 6] = -p * val * x / wq
+        J[:, 7] = -p * val * y / wq
+        out.append(J)
+    return np.vstack(out)
 
 
 def periods_px(Hc, f):
@@ -219,10 +258,12 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
             ww = ww * np.clip(1 - (r / bw) ** 2, 0, None) ** 2  # Tukey biweight
             J = _h_jacobian(Hc, q, fam_a, fam_b, pa, pb)
             cols = []
+            used = fam_a | fam_b
             for j in stage_free:
                 l2 = lens.copy()
                 l2[j] += eps[j]
-                q2 = _normalised(xs, K, l2)
+                q2 = q.copy()
+                q2[used] = _normalised(xs[used], K, l2)
                 cols.append((_residuals(Hc, q2, fam_a, fam_b, ia, ib, pa, pb) - r) / eps[j])
             if cols:
                 J = np.column_stack([J] + cols)

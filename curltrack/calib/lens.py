@@ -35,11 +35,11 @@ def distort(pts_px, K, dist) -> np.ndarray:
     return np.stack([cx + qx * s, cy + qy * s], axis=-1)
 
 
-def undistort(pts_px, K, dist, iterations: int = 8) -> np.ndarray:
+def undistort(pts_px, K, dist, iterations: int = 6) -> np.ndarray:
     """Distorted (observed) pixel coordinates (N, 2) -> undistorted pixel coordinates.
 
-    Fixed-point inversion of :func:`distort`; converges to < 1e-6 px for the distortion of
-    ordinary lenses (|displacement| up to tens of pixels).
+    Newton's method on the radius ``r_d = r (1 + k1 r^2 + k2 r^4)``; converges to
+    < 1e-6 px for ordinary lenses (a few iterations; quadratic convergence).
     """
     p = np.asarray(pts_px, float)
     k1, k2 = (tuple(dist) + (0.0, 0.0))[:2]
@@ -47,12 +47,15 @@ def undistort(pts_px, K, dist, iterations: int = 8) -> np.ndarray:
         return p.copy()
     f, cx, cy = K[0, 0], K[0, 2], K[1, 2]
     dx, dy = (p[..., 0] - cx) / f, (p[..., 1] - cy) / f
-    qx, qy = dx, dy
+    rd = np.sqrt(dx * dx + dy * dy)
+    r = rd.copy()
     for _ in range(iterations):
-        r2 = qx * qx + qy * qy
-        s = 1.0 / (1.0 + r2 * (k1 + k2 * r2))
-        qx, qy = dx * s, dy * s
-    return np.stack([cx + f * qx, cy + f * qy], axis=-1)
+        r2 = r * r
+        g = r * (1.0 + r2 * (k1 + k2 * r2)) - rd
+        dg = 1.0 + r2 * (3.0 * k1 + 5.0 * k2 * r2)
+        r = r - g / np.where(np.abs(dg) > 1e-6, dg, 1e-6)
+    s = np.divide(r, rd, out=np.ones_like(rd), where=rd > 0)
+    return np.stack([cx + f * dx * s, cy + f * dy * s], axis=-1)
 
 
 def apply_h(H, pts) -> np.ndarray:
