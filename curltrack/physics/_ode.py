@@ -46,22 +46,25 @@ class OdeSegment:
         py, pt, k_y, k_t = self.py, self.pt, self.k_y, self.k_t
         late, patches, v_c, a_T, sgn = self.terms.late_curl, self.terms.patches, m.v_taper, m.a_T, self.sgn
 
-        def rhs(t, z):
-            x, y, w, psi, th, q = z
-            f = patch_factor(y, patches) if patches else 1.0
-            d = np.zeros(6)
+        e_y, e_t = 1.0 / (1.0 - py), 1.0 / (1.0 - pt)
+        c_y, c_t = (1.0 - py) * k_y, (1.0 - pt) * k_t
+
+        def rhs(t, z):  # scalar math on purpose: called ~1000 times per shot
+            x, y, w, psi, th, q = z.tolist()
+            f = float(patch_factor(y, patches)) if patches else 1.0
+            d = [0.0] * 6
             if moving:
-                v = max(w, 0.0) ** (1.0 / (1.0 - py))
+                v = w ** e_y if w > 0 else 0.0
                 c, s = math.cos(psi), math.sin(psi)
                 a_par = -ax * s + ay * c          # slope along v_hat = (-sin, cos)
                 a_left = -ax * c - ay * s         # slope along the left normal
                 a_perp = a_left + (sgn * a_T * transverse_gain(v, late, v_c) if spinning else 0.0)
                 d[0], d[1] = -v * s, v * c
-                d[2] = (1.0 - py) * (-k_y * f + max(v, _V_FLOOR) ** (-py) * a_par)
+                d[2] = -c_y * f + (1.0 - py) * max(v, _V_FLOOR) ** (-py) * a_par
                 d[3] = heading_rate(a_perp, v, v_c)
             if spinning:
-                d[4] = sgn * max(q, 0.0) ** (1.0 / (1.0 - pt))
-                d[5] = -(1.0 - pt) * k_t * f
+                d[4] = sgn * q ** e_t if q > 0 else 0.0
+                d[5] = -c_t * f
             return d
 
         return rhs

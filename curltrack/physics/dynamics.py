@@ -4,10 +4,12 @@ The equations are documented in :mod:`curltrack.physics.shot` (baseline) and
 :mod:`curltrack.physics.effects` (extension terms).  One set of equations, two solvers
 chosen here in one place:
 
-* closed forms + quadrature (:mod:`._quadrature`) when no effect couples the speed to the
-  position or heading (baseline, ``late_curl``, ``pick``, ``velocity_dependent_friction``):
-  ~1-2 ms for a draw;
-* ``solve_ivp`` with stop events (:mod:`._ode`) for ``ice_slope`` and ``friction_patch``.
+* closed forms + quadrature (:mod:`._quadrature`) unless the ice is tilted: baseline,
+  ``late_curl``, ``velocity_dependent_friction``, and piecewise for ``pick`` (cut at t_s)
+  and ``friction_patch`` (cut where y(t) crosses an edge, found by root finding on the
+  interpolant; alpha scaled inside): ~1 ms for a draw;
+* ``solve_ivp`` with stop events (:mod:`._ode`) for ``ice_slope``, which couples the speed
+  to the heading: ~20-30 ms.
 
 Both evaluate at the requested times exactly and locate stops analytically or by event
 root finding, so the output is smooth in every parameter (finite-difference Jacobians
@@ -23,7 +25,7 @@ import math
 import numpy as np
 
 from ..errors import ParameterError
-from .effects import gather
+from .effects import gather, patch_factor
 from .shot import ShotModel, Trajectory
 
 #: Integration horizon (s) when the caller gives no times: a rock still moving after
@@ -55,33 +57,99 @@ def solve(model: ShotModel, effects=(), horizon: float | None = None, method: st
     if method not in ("auto", "ode", "closed"):
         raise ParameterError(f"unknown method {method!r}; expected auto, ode or closed",
                              where="method")
-    if method == "closed" and terms.needs_ode:
-        raise ParameterError("ice_slope and friction_patch need method 'ode'", where="method")
-    use_ode = method == "ode" or terms.needs_ode
+    if method == "closed" and terms.slope_accel != (0.0, 0.0):
+        raise ParameterError("ice_slope needs method 'ode'", where="method")
+    use_ode = method == "ode" or terms.slope_accel != (0.0, 0.0)
     horizon = MAX_DURATION_S if horizon is None else float(horizon)
-    if use_ode:
-        from ._ode import OdeSegment as Segment
-    else:
-        from ._quadrature import ClosedSegment as Segment
+    segments = (_ode_segments(model, terms, horizon) if use_ode
+                else _closed_segments(model, terms))
+    stops = [_stop_time(segments, a) for a in ("t_stop_translation", "t_stop_rotation")]
+    # both solvers report a stop beyond the horizon alike: not stopped (inf)
+    stops = [s if s <= horizon else math.inf for s in stops]
+    return segments, stops[0], stops[1]
+
+
+def _after_pick(end: dict, pick) -> tuple:
+    _, dvx, dvy, dw = pick
+    return (end["x"][0], end["y"][0], end["vx"][0] + dvx, end["vy"][0] + dvy,
+            end["theta"][0], end["omega"][0] + dw)
+
+
+def _ode_segments(model, terms, horizon):
+    from ._ode import OdeSegment
 
     state = (0.0, 0.0, 0.0, model.v0, 0.0, model.omega0)
     bounds = [0.0] + [p[0] for p in terms.picks]
     segments = []
     for i, t0 in enumerate(bounds):
-        t1 = bounds[i + 1] if i + 1 < len(bounds) else (horizon if use_ode else math.inf)
-        t1 = max(t1, t0)
-        seg = (Segment(model, terms, t0, state, t1) if use_ode
-               else Segment(model, terms.late_curl, t0, state, t1))
+        t1 = max(bounds[i + 1] if i + 1 < len(bounds) else horizon, t0)
+        seg = OdeSegment(model, terms, t0, state, t1)
         segments.append((t0, t1, seg))
         if i + 1 < len(bounds):
-            end = seg.evaluate(np.array([t1]))
-            _, dvx, dvy, dw = terms.picks[i]
-            state = (end["x"][0], end["y"][0], end["vx"][0] + dvx, end["vy"][0] + dvy,
-                     end["theta"][0], end["omega"][0] + dw)
-    stops = [_stop_time(segments, a) for a in ("t_stop_translation", "t_stop_rotation")]
-    # both solvers report a stop beyond the horizon alike: not stopped (inf)
-    stops = [s if s <= horizon else math.inf for s in stops]
-    return segments, stops[0], stops[1]
+            state = _after_pick(seg.evaluate(np.array([t1])), terms.picks[i])
+    return segments
+
+
+def _closed_segments(model, terms):
+    """Closed-form pieces, cut at picks and where the rock crosses a patch edge.
+
+    Inside a piece the friction factor f of the patch under the rock is constant, so the
+    motion is the closed form with alpha_y f and alpha_theta f from the piece's start.
+    """
+    from ._quadrature import ClosedSegment
+
+    edges = sorted({e for p in terms.patches for e in p[:2]})
+    alpha_theta = model.alpha_theta_value
+    state = (0.0, 0.0, 0.0, model.v0, 0.0, model.omega0)
+    t0, picks, segments = 0.0, list(terms.picks), []
+    for _ in range(10 * len(edges) + len(picks) + 2):  # each edge is crossed at most a few times
+        t_pick = picks[0][0] if picks else math.inf
+        m = model
+        if edges:
+            ahead = state[1] + 1e-9 * math.copysign(1.0, state[3])
+            f = patch_factor(ahead, terms.patches)
+            if f != 1.0:
+                m = dataclasses.replace(model, alpha_y=model.alpha_y * f,
+                                        alpha_theta=alpha_theta * f)
+        seg = ClosedSegment(m, terms.late_curl, t0, state, max(t_pick, t0))
+        t_cross, edge = _first_crossing(seg, edges) if edges else (math.inf, None)
+        if t_cross < t_pick:
+            segments.append((t0, t_cross, seg))
+            end = seg.evaluate(np.array([t_cross]))
+            state = tuple(end[k][0] for k in ("x", "y", "vx", "vy", "theta", "omega"))
+            state = (state[0], edge) + state[2:]   # exactly on the edge: not crossed again
+            t0 = t_cross
+            continue
+        segments.append((t0, max(t_pick, t0), seg))
+        if not picks:
+            return segments
+        state = _after_pick(seg.evaluate(np.array([max(t_pick, t0)])), picks.pop(0))
+        t0 = max(t_pick, t0)
+    raise ParameterError("too many patch-edge crossings", where="friction_patch")
+
+
+def _first_crossing(seg, edges) -> tuple[float, float | None]:
+    """First (time, edge) after the piece's start at which y(t) crosses an edge."""
+    if seg.nodes is None:
+        return math.inf, None
+    from scipy.optimize import brentq
+
+    tn, yn = seg.nodes, seg.pos[:, 1]
+    best, where = math.inf, None
+    for e in edges:
+        d = yn - e   # a piece that starts on the edge (d[0] = 0) has not crossed it yet
+        hit = np.flatnonzero((d[:-1] * d[1:] < 0) | (d[1:] == 0))
+        if not hit.size:
+            continue
+        j = hit[0]
+        if d[j + 1] == 0:
+            t_e = tn[j + 1]
+        else:
+            fy = lambda tt: seg.evaluate(np.array([tt]))["y"][0] - e  # noqa: E731
+            t_e = brentq(fy, tn[j], tn[j + 1], xtol=1e-13, rtol=1e-15)
+        if t_e < best:
+            best, where = t_e, e
+    return best, where
 
 
 def _stop_time(segments, attr) -> float:

@@ -114,10 +114,13 @@ def test_heading_stays_finite_for_lambda_at_or_above_two(phi_y):
 
 @pytest.mark.parametrize("p", _cases(4, v0=(1.0, 3.0), omega0=(0.5, 3.0), a_T=(1e-3, 2e-2),
                                      k=(0.0, 1.0), t_s=(2.0, 12.0), dw=(-0.4, 0.4),
-                                     dvx=(-0.05, 0.05), sign=(-1, 1)))
+                                     dvx=(-0.05, 0.05), sign=(-1, 1), y1=(2.0, 20.0),
+                                     dy=(0.5, 8.0), f=(0.5, 2.0)))
 def test_closed_and_ode_paths_agree(p):
     p["omega0"] *= np.sign(p["sign"])
     effects = (Effect("late_curl", {"k": p["k"]}),
+               Effect("friction_patch", {"y_start_m": p["y1"], "y_end_m": p["y1"] + p["dy"],
+                                         "factor": p["f"]}),
                Effect("pick", {"t_s": p["t_s"], "dvx_m_per_s": p["dvx"],
                                "domega_rad_per_s": p["dw"]}))
     m = ShotModel(v0=p["v0"], omega0=p["omega0"], a_T=p["a_T"])
@@ -161,6 +164,22 @@ def test_smooth_in_pick_time():
     d1 = (x_at(8.0 + h) - x_at(8.0 - h)) / (2 * h)
     d2 = (x_at(8.0 + h / 2) - x_at(8.0 - h / 2)) / h
     assert abs(d1) > 1e-4 and d1 == pytest.approx(d2, rel=1e-3)
+
+
+@pytest.mark.parametrize("key,value", [("y_start_m", 8.0), ("factor", 1.5)])
+def test_smooth_in_patch_parameters(key, value):
+    t = np.arange(0, 30, 1 / 30)
+
+    def y_at(v):
+        params = {"y_start_m": 8.0, "y_end_m": 12.0, "factor": 1.5, key: v}
+        return simulate(ShotModel(v0=2.0, omega0=1.5),
+                        (Effect("friction_patch", params),), t=t).y
+
+    h = 1e-3
+    d1 = (y_at(value + h) - y_at(value - h)) / (2 * h)
+    d2 = (y_at(value + h / 2) - y_at(value - h / 2)) / h
+    assert np.abs(d1).max() > 0.1
+    assert np.abs(d1 - d2).max() < 2e-3 * np.abs(d1).max()
 
 
 def test_times_in_any_order_and_deterministic():

@@ -1,0 +1,60 @@
+#!/usr/bin/env python
+"""Benchmark of the forward model (targets: < 50 ms per draw; < 20 ms inside fits).
+
+Times one typical draw (v0 = 2 m/s, omega0 = 1.5 rad/s, ~26 s, ~0.9 m curl) sampled at
+30 fps, for each solver path and with each effect, as the median of repeated runs in one
+process (first call excluded: imports).  Usage: python scripts/bench_simulate.py [-n 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+from curltrack.physics import Effect, ShotModel, simulate
+from curltrack.physics.segment import SegmentModel, simulate_segment
+from curltrack.simulate import simulate_series
+
+CASES = {
+    "paper, baseline (closed forms + quadrature)": ((), "auto"),
+    "paper, baseline forced through the ODE": ((), "ode"),
+    "paper + late_curl": ((Effect("late_curl", {"k": 0.5}),), "auto"),
+    "paper + pick": ((Effect("pick", {"t_s": 8.0, "domega_rad_per_s": -0.5}),), "auto"),
+    "paper + ice_slope (ODE)": ((Effect("ice_slope", {"slope_x_mm_per_m": 1.0}),), "auto"),
+    "paper + friction_patch (piecewise closed)": (
+        (Effect("friction_patch", {"y_start_m": 10, "y_end_m": 15, "factor": 1.3}),), "auto"),
+}
+
+
+def _time(fn, n):
+    fn()
+    runs = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        fn()
+        runs.append(time.perf_counter() - t0)
+    return statistics.median(runs) * 1e3
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("-n", type=int, default=30, help="repetitions")
+    n = ap.parse_args(argv).n
+    model = ShotModel(v0=2.0, omega0=1.5)
+    t = np.arange(0, 27.0, 1 / 30)
+    for name, (effects, method) in CASES.items():
+        ms = _time(lambda: simulate(model, effects, t=t, method=method), n)
+        print(f"{name:48s} {ms:8.2f} ms")
+    ms = _time(lambda: simulate_series(model, noise_m=0.002, noise_rad=0.005, seed=1), n)
+    print(f"{'simulate_series (paper, with noise)':48s} {ms:8.2f} ms")
+    seg = SegmentModel(v0=2.0, omega0=1.5)
+    ms = _time(lambda: simulate_segment(seg, t=t), max(3, n // 10))
+    print(f"{'segment model (64 segments, film)':48s} {ms:8.2f} ms")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
