@@ -19,7 +19,7 @@ from .camera import Camera
 from .compositor import Compositor, pose_matrix
 from .config import RenderConfig
 from .motion import CameraPath
-from .scene import broom_sprite, ice_texture, rock_sprites
+from .scene import N_ICE, broom_sprite, ice_texture, rock_sprites
 from .trajectory import Trajectory, truth_table
 
 BROOM_ABOVE_TOP_M = 0.2  # the broom head passes this far above the rock's top
@@ -68,7 +68,9 @@ class Production:
         cfg.validate()
         self.rig, self.cfg, self.seed = rig, cfg, int(seed)
         self.series_name = series.name
-        rng = np.random.default_rng(seed)
+        # independent streams: changing the look of the ice does not move the camera
+        rng, rng_cam, self._rng_scene = (np.random.default_rng(s)
+                                         for s in np.random.SeedSequence(int(seed)).spawn(3))
         fps = cfg.fps or rig.fps or series.meta.get("fps") or 30.0
         if not (np.isfinite(fps) and fps > 0):
             raise ParameterError(f"fps must be > 0, got {fps!r}", where="render.fps")
@@ -87,7 +89,7 @@ class Production:
         self.t_frames = np.arange(n_frames) / self.fps
         self.path = path = CameraPath(cam_cfg, cfg.width, cfg.height, traj.rock_xy,
                                       -1.0 / self.fps, traj.duration + 1.0 / self.fps,
-                                      traj.travel_yaw, rng)
+                                      traj.travel_yaw, rng_cam)
         traj.align_to_image(path.yaw0 + np.pi / 2)
         self.cams = [path.camera(t) for t in self.t_frames]
         h_mid = 0.5 * rig.rock_height_m
@@ -96,27 +98,36 @@ class Production:
         if not self.cams[0].in_image(uv).any():
             raise ParameterError("the rock is outside the view for the whole shot (check "
                                  "the camera offset, height and view)", where="render.camera")
-        # scene: drawn once
         self.ppm_img = path.f_px / cam_cfg.height_m
+        self.tex_z_m = -rig.grid_depth_m / N_ICE
+        self.t_occ = (cfg.occlusion_t_s if cfg.occlusion_t_s is not None
+                      else 0.4 * traj.t_motion_end)
+        self._drawn = None
+        nsub = int(cfg.blur_subframes)
+        self.offsets = ((np.arange(nsub) + 0.5) / nsub - 0.5) * cfg.shutter / self.fps
+
+    def _scene(self):
+        """Draw the scene (ice texture, sprites, compositor) once, on first use."""
+        if self._drawn is not None:
+            return
+        cfg, rig, path, traj, rng = self.cfg, self.rig, self.path, self.traj, self._rng_scene
         span = np.linspace(-1 / self.fps, traj.duration + 1 / self.fps, 400)
-        bounds = _texture_bounds(path, span, traj.rock_xy, self.cams[0], cam_cfg.height_m)
+        bounds = _texture_bounds(path, span, traj.rock_xy, self.cams[0], self.cam_cfg.height_m)
         area = (bounds[2] - bounds[0]) * (bounds[3] - bounds[1])
         self.ppm_tex = float(min(cfg.texture_oversample * self.ppm_img, np.sqrt(60e6 / area),
                                  30000 / max(bounds[2] - bounds[0], bounds[3] - bounds[1])))
         world_phase = (self.phase[0] * rig.spacing_x_m, self.phase[1] * rig.spacing_y_m)
         self.tex = ice_texture(rig, bounds, self.ppm_tex, world_phase, cfg.ice, rng)
-        ppm_rock = 1.5 * path.f_px / (cam_cfg.height_m - rig.rock_height_m)
-        self.sprites = rock_sprites(rig, ppm_rock, rng, marker_diameter_m=cfg.marker_diameter_m)
+        ppm_rock = 1.5 * path.f_px / (self.cam_cfg.height_m - rig.rock_height_m)
+        self.sprites = rock_sprites(rig, ppm_rock, rng, 1.5 / ppm_rock,
+                                    marker_diameter_m=cfg.marker_diameter_m)
         self.broom = None
         if cfg.occlusion:
             self.broom = replace(broom_sprite(self.ppm_img * 1.2, rng),
                                  z_m=rig.rock_height_m + BROOM_ABOVE_TOP_M)
-        self.t_occ = (cfg.occlusion_t_s if cfg.occlusion_t_s is not None
-                      else 0.4 * traj.t_motion_end)
         self.comp = Compositor(self.cams[0], cfg.vignetting, cfg.read_noise,
                                cfg.shot_noise_gain, cfg.jpeg_quality, rng)
-        nsub = int(cfg.blur_subframes)
-        self.offsets = ((np.arange(nsub) + 0.5) / nsub - 0.5) * cfg.shutter / self.fps
+        self._drawn = True
 
     @property
     def n_frames(self) -> int:
@@ -140,6 +151,7 @@ class Production:
 
     def frames(self, start: int = 0, stop: int | None = None):
         """Yield ``(image, FrameInfo)`` for frames ``start`` .. ``stop - 1`` (BGR uint8)."""
+        self._scene()
         stop = self.n_frames if stop is None else min(stop, self.n_frames)
         for k in range(start, stop):
             tk = self.t_frames[k]
@@ -148,8 +160,9 @@ class Production:
 
     def occluded_fraction(self, k: int) -> float:
         """Fraction of the rock's top (as imaged in frame ``k``) hidden by the broom."""
-        if self.broom is None:
+        if not self.cfg.occlusion:
             return 0.0
+        self._scene()
         t, cam, rig = self.t_frames[k], self.cams[k], self.rig
         P = self.traj.rock_xy(np.array([t]))[0]
         r = 0.5 * rig.rock_diameter_m * 0.8
@@ -177,7 +190,7 @@ class Production:
         meta = self.traj.sidecar(self.fps, self.n_frames, self.t_frames)
         meta.update(camera_height_m=self.cam_cfg.height_m,
                     grid_spacing_px=float(self.path.f_px * self.rig.spacing_x_m
-                                          / (self.cam_cfg.height_m - self.tex.z_m)),
+                                          / (self.cam_cfg.height_m - self.tex_z_m)),
                     render=self.settings(), source=self.series_name)
         return Series(data, meta)
 
@@ -190,5 +203,5 @@ class Production:
                     psi0_deg=float(np.rad2deg(self.traj.psi0)),
                     truth_rotation_deg=float(np.rad2deg(self.traj.truth_rot)),
                     f_px=float(p.f_px), cx_px=float(p.cx), cy_px=float(p.cy),
-                    yaw0_deg=float(np.rad2deg(p.yaw0)), texture_ppm=self.ppm_tex,
+                    yaw0_deg=float(np.rad2deg(p.yaw0)),
                     fps_used=self.fps)

@@ -200,9 +200,10 @@ def _grid(half_m: float, ppm: float):
     return np.meshgrid(c, -c)
 
 
-def _disc(x, y, cx, cy, radius, ppm):
-    """Anti-aliased coverage of a disc (0-1)."""
-    return np.clip(0.5 + (radius - np.hypot(x - cx, y - cy)) * ppm, 0, 1).astype(np.float32)
+def _disc(x, y, cx, cy, radius, aa_m):
+    """Coverage (0-1) of a disc with an edge ramp ``aa_m`` wide (m): one image pixel,
+    so that the warped edge is box-filtered like a camera pixel, not aliased."""
+    return np.clip(0.5 + (radius - np.hypot(x - cx, y - cy)) / aa_m, 0, 1).astype(np.float32)
 
 
 def _granite(shape, rng, tone, contrast, ppm):
@@ -226,14 +227,16 @@ _PROFILE = ((0.25, 0.91), (0.48, 1.0), (0.7, 0.97), (0.88, 0.89))
 TOP_RADIUS_FRACTION = 0.81
 
 
-def rock_sprites(rig: Rig, ppm: float, rng: np.random.Generator,
+def rock_sprites(rig: Rig, ppm: float, rng: np.random.Generator, pixel_m: float,
                  marker_diameter_m: float = 0.025, handle_color: str = "#1c1c22",
                  shadow_strength: float = 0.45, light_dir=(0.3, -0.5)) -> list[Sprite]:
     """The rock as planar slices, bottom to top: shadow, body slices, top (markers), handle.
 
     The top slice lies at ``rig.rock_height_m`` (the marker plane) and carries the
-    markers (discs of ``marker_diameter_m``).  The handle is a dark bar at 2.5 cm above
-    it, perpendicular to the line through the two most distant markers.
+    markers (discs of ``marker_diameter_m``).  The handle is a dark bar 2.5 cm above it,
+    through the axis, turned to keep clear of the markers.  ``ppm`` is the
+    sprites' resolution (texels/m), ``pixel_m`` the size of an image pixel on the rock
+    (m): edges are ramped over it.
     """
     R = rig.rock_diameter_m / 2
     h = rig.rock_height_m
@@ -243,42 +246,52 @@ def rock_sprites(rig: Rig, ppm: float, rng: np.random.Generator,
     sprites = []
     # shadow on the ice: soft, slightly offset away from the light; does not turn
     ld = np.asarray(light_dir, dtype=float)
-    sh = _disc(x, y, -0.012 * ld[0], -0.012 * ld[1], R * 1.02, ppm)
+    sh = _disc(x, y, -0.012 * ld[0], -0.012 * ld[1], R * 1.02, pixel_m)
     sh = cv2.GaussianBlur(sh, (0, 0), 0.012 * ppm) * shadow_strength
     sprites.append(Sprite(_premul(np.zeros(3, np.float32), sh), ppm, 0.0, attached=False))
     r = np.hypot(x, y)
     granite = _granite(x.shape, rng, 118.0, 16.0, ppm)
     tint = np.array([1.0, 0.98, 0.95], np.float32)  # slightly warm grey
     for zf, rf in _PROFILE:
-        a = _disc(x, y, 0, 0, R * rf, ppm)
+        a = _disc(x, y, 0, 0, R * rf, pixel_m)
         # the side is seen at grazing incidence: darker towards the rim
         shade = 0.55 + 0.35 * np.clip(1 - (r / (R * rf)) ** 4, 0, 1)
         col = (granite * shade)[..., None] * tint
         sprites.append(Sprite(_premul(col, a), ppm, zf * h))
     top_r = R * TOP_RADIUS_FRACTION
-    a = _disc(x, y, 0, 0, top_r, ppm)
+    a = _disc(x, y, 0, 0, top_r, pixel_m)
     # polished top: brighter, a light towards the light direction, a faint cup ring
     lit = 1.0 + 0.12 * (x * ld[0] + y * ld[1]) / R
     ring = 1.0 - 0.25 * np.exp(-0.5 * ((r - 0.72 * top_r) / (0.004)) ** 2)
     col = (_granite(x.shape, rng, 140.0, 20.0, ppm) * lit * ring)[..., None] * tint
     for m in rig.markers:
-        ma = _disc(x, y, m.x_m, m.y_m, marker_diameter_m / 2, ppm)
+        ma = _disc(x, y, m.x_m, m.y_m, marker_diameter_m / 2, pixel_m)
         mcol = bgr(m.color) * (0.92 + 0.08 * lit[..., None])
         col = col * (1 - ma[..., None]) + mcol * ma[..., None]
     sprites.append(Sprite(_premul(col, a), ppm, h))
-    # handle: perpendicular to the longest marker baseline
-    d = mk[:, None, :] - mk[None, :, :]
-    i, j = np.unravel_index(np.argmax((d**2).sum(-1)), d.shape[:2])
-    base = d[i, j] / (np.linalg.norm(d[i, j]) + 1e-12)
-    along = np.array([-base[1], base[0]])
+    # handle: through the axis, turned to stay as far as possible from every marker
+    length, width = min(0.19, 1.3 * top_r), 0.035
+    along = _handle_direction(mk, length)
+    base = np.array([along[1], -along[0]])
     s = x * along[0] + y * along[1]
     q = x * base[0] + y * base[1]
-    length, width = min(0.19, 1.3 * top_r), 0.035
-    cov = (np.clip(0.5 + (length / 2 - np.abs(s)) * ppm, 0, 1)
-           * np.clip(0.5 + (width / 2 - np.abs(q)) * ppm, 0, 1)).astype(np.float32)
+    cov = (np.clip(0.5 + (length / 2 - np.abs(s)) / pixel_m, 0, 1)
+           * np.clip(0.5 + (width / 2 - np.abs(q)) / pixel_m, 0, 1)).astype(np.float32)
     hl = bgr(handle_color) * (1.0 + 0.8 * np.exp(-0.5 * (q / 0.006) ** 2))[..., None]
     sprites.append(Sprite(_premul(hl, cov), ppm, h + 0.025))
     return sprites
+
+
+def _handle_direction(markers_xy, length):
+    """Unit vector of the handle bar (through the axis) that keeps the largest clearance
+    from the markers, as an experimenter sticks markers where the handle leaves room."""
+    angles = np.deg2rad(np.arange(0.0, 180.0, 1.0))
+    u = np.column_stack([np.cos(angles), np.sin(angles)])          # (A, 2)
+    along = markers_xy @ u.T                                         # (M, A)
+    across = np.abs(markers_xy @ np.column_stack([-u[:, 1], u[:, 0]]).T)
+    beyond = np.clip(np.abs(along) - length / 2, 0, None)
+    clearance = np.hypot(across, beyond).min(axis=0)
+    return u[int(np.argmax(clearance))]
 
 
 def broom_sprite(ppm: float, rng: np.random.Generator, head_m=(0.28, 0.09),

@@ -27,6 +27,12 @@ def _rot(a: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
+def _quarter_turn(angle: float) -> float:
+    """The multiple of 90 deg closest to ``angle``, in (-180, 180] deg (as rad)."""
+    k = int(np.round(angle / (np.pi / 2))) % 4
+    return float((k if k < 3 else -1) * np.pi / 2)
+
+
 def _derive_stop(t, q, tol):
     """Time of the last change of ``q`` larger than ``tol`` (None if still moving)."""
     moving = np.abs(np.diff(q, axis=0)).reshape(len(q) - 1, -1).max(axis=1) > tol
@@ -74,6 +80,7 @@ class Trajectory:
         self.t_stop_rot = self._stop("t_stop_rotation", self.theta, STILL_RAD)
         still_at_end = all(s is not None and s <= self.t[-1] + 1e-9
                            for s in (self.t_stop_tr, self.t_stop_rot))
+        self.stopped = still_at_end
         self.t_end = self.t[-1]
         stops = [s for s in (self.t_stop_tr, self.t_stop_rot) if s]
         self.t_motion_end = max(stops) if stops else self.t_end
@@ -88,8 +95,7 @@ class Trajectory:
             first = self.xy[np.argmax(disp > 0.5 * TRANSLATING_M)]
             w = _rot(self.heading) @ first
             self.travel_yaw = float(np.arctan2(w[1], w[0]))
-            k = np.round((self.travel_yaw - np.pi / 2) / (np.pi / 2))
-            self.truth_rot = float(k * np.pi / 2)
+            self.truth_rot = _quarter_turn(self.travel_yaw - np.pi / 2)
         else:
             self.travel_yaw = 0.0
             self.truth_rot = 0.0  # set from the camera by align_to_image
@@ -103,11 +109,13 @@ class Trajectory:
     def align_to_image(self, image_up_yaw_rad: float) -> None:
         """For a non-translating rock: truth +y = the grid axis closest to image up."""
         if not self.translating:
-            k = np.round((image_up_yaw_rad - np.pi / 2) / (np.pi / 2))
-            self.truth_rot = float(k * np.pi / 2)
+            self.truth_rot = _quarter_turn(image_up_yaw_rad - np.pi / 2)
 
     def _clip(self, t):
-        return np.minimum(np.asarray(t, dtype=float), self.t_end)
+        """Hold the final state after a stop; a series cut short is extrapolated (the
+        last exposure reaches half a shutter beyond its last row)."""
+        t = np.asarray(t, dtype=float)
+        return np.minimum(t, self.t_end) if self.stopped else t
 
     def rock_xy(self, t) -> np.ndarray:
         """Rock centre in the world (N, 2) at times ``t`` (m)."""
