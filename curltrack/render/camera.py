@@ -98,14 +98,26 @@ class Camera:
         r2 = (xy**2).sum(axis=-1, keepdims=True)
         return xy * (1.0 + self.k1 * r2 + self.k2 * r2**2)
 
-    def undistort(self, xy_d, iterations: int = 20) -> np.ndarray:
-        """Distorted normalised coordinates -> undistorted (fixed-point iteration)."""
+    def undistort(self, xy_d, iterations: int = 12) -> np.ndarray:
+        """Distorted normalised coordinates -> undistorted (Newton's method on the radius).
+
+        Raises
+        ------
+        ParameterError
+            If the distortion is not monotonic out to the requested radius.
+        """
         xy_d = np.asarray(xy_d, dtype=float)
-        xy = xy_d.copy()
+        rd = np.sqrt((xy_d**2).sum(axis=-1))
+        r = rd.copy()
         for _ in range(iterations):
-            r2 = (xy**2).sum(axis=-1, keepdims=True)
-            xy = xy_d / (1.0 + self.k1 * r2 + self.k2 * r2**2)
-        return xy
+            f = r * (1.0 + self.k1 * r**2 + self.k2 * r**4) - rd
+            df = 1.0 + 3.0 * self.k1 * r**2 + 5.0 * self.k2 * r**4
+            if (df <= 0).any():
+                raise ParameterError("lens distortion folds over inside the image (k1, k2 "
+                                     "too strong for this field of view)", where="camera.k1")
+            r = r - f / df
+        scale = np.divide(r, rd, out=np.ones_like(rd), where=rd > 0)
+        return xy_d * scale[..., None]
 
     def project(self, points) -> np.ndarray:
         """World points (N, 3) (m) -> distorted pixel coordinates (N, 2) (px)."""
