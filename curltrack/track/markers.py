@@ -259,16 +259,27 @@ class MarkerDetector:
         if dd < 25.0:  # < 5 grey levels apart: no usable contrast
             return None
         noise = 1.4826 * np.median(np.abs(win[ring] - bg), axis=0).mean()
+        # Project on the marker colour's chroma (d without its grey component) when it
+        # has one: then shading of a neutral background (a cup ring, a light gradient on
+        # grey granite or white ice) does not leak into the coverage and bias the centroid.
+        grey = np.full(3, 1 / np.sqrt(3), np.float32)
+        d_c = d - (d @ grey) * grey
+        proj = d_c if d_c @ d_c > 0.25 * dd else d
+        den = float(proj @ d)
         for _ in range(2):
-            s = (win - bg) @ d / dd
-            perp = np.linalg.norm(win - bg - s[..., None] * d, axis=-1)
+            diff = win - bg
+            s = diff @ proj / den
+            res = diff - s[..., None] * d
+            if proj is d_c:
+                res = res - (res @ grey)[..., None] * grey
+            perp = np.linalg.norm(res, axis=-1)
             w = np.clip(s, 0.0, 1.0) * (perp < 0.35 * np.sqrt(dd) + 2 * noise)
             w = w * (np.hypot(xx - cx, yy - cy) <= R_in)
             sw = w.sum()
             if sw <= 0.5:
                 return None
             cx, cy = (w * xx).sum() / sw, (w * yy).sum() / sw
-        sigma_w = max(noise, 0.5) / np.sqrt(dd)
+        sigma_w = max(noise, 0.5) * float(np.linalg.norm(proj)) / den
         inside = np.hypot(xx - cx, yy - cy) <= R_in
         r2 = ((xx - cx) ** 2 + (yy - cy) ** 2)[inside].sum()
         sigma = float(sigma_w * np.sqrt(r2 / 2.0) / sw)

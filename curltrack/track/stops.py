@@ -78,21 +78,22 @@ def noise_sigma(q: np.ndarray) -> float:
     return float(1.4826 * mad / np.sqrt(6.0))
 
 
-def _model(p, t, k, quad):
-    """Eq. (1) for k coordinates sharing t_F and lambda.
+def _reduced_residual(t_F, lam, tw, Qw, quad, sigma):
+    """Residuals (flattened, in sigmas) with the linear parameters solved out.
 
-    p = [t_F, lam, (q_F, c[, b]) * k]; column j is q_F - c tau^lam [- b tau^2].
+    Given (t_F, lambda) every column is linear in its rest level, amplitude (and tau^2
+    coefficient): variable projection leaves a 2-parameter nonlinear problem, which is
+    searched on a grid first, so no local minimum is mistaken for the stop.
     """
-    tau = np.maximum(p[0] - t, 0.0)
-    pw, sq = tau ** p[1], tau**2
-    m = 3 if quad else 2
-    cols = []
-    for j in range(k):
-        col = p[2 + m * j] - p[3 + m * j] * pw
-        if quad:
-            col = col - p[4 + m * j] * sq
-        cols.append(col)
-    return np.column_stack(cols)
+    tau = np.maximum(t_F - tw, 0.0)
+    pw = tau ** lam
+    A1 = np.column_stack([np.ones_like(tw), -pw])
+    out = []
+    for j in range(Qw.shape[1]):
+        A = np.column_stack([A1, -tau**2]) if (quad and j > 0) else A1
+        coef, *_ = np.linalg.lstsq(A, Qw[:, j], rcond=None)
+        out.append(Qw[:, j] - A @ coef)
+    return np.concatenate(out) / sigma
 
 
 def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | None = None,
@@ -113,7 +114,7 @@ def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | N
     sigma : float, optional
         Noise sigma of ``q``; estimated from second differences of column 0 when None.
     quad : bool
-        Add a ``- b tau^2`` term per column.  The paper's curl x(t) near the stop is
+        Add a ``- b tau^2`` term to the columns after the first.  The paper's curl x(t) near the stop is
         exactly ``x_F + A tau^lambda + B tau^2`` (its linear term cancels), so with this
         term the model is exact for a curling draw and a turning direction of motion
         does not bias ``t_F``.
@@ -148,42 +149,38 @@ def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | N
     i_a = int(cand[-1]) if cand.size else 0
     i_a = max(0, min(i_a, i_c - 12))
     tw, Qw = t[i_a:], Q[i_a:]
-    t_c = t[i_c] + dt
-    big = 50 * sigma + abs(span)
-    T = max(t_c - tw[0], dt)
-    best = None
-    for lam_init in (1.5, 2.0, 2.7):
-        c_init = (q_rest - Qw[0, 0]) / T ** lam_init
-        p0, lo, hi, scale = [t_c, lam_init], [tw[0] + dt, 1.0], [t[-1] + 5 * dt, 4.0], [dt, 0.1]
-        for j in range(k):
-            rest_j = float(np.median(Q[-5:, j]))
-            c_max = 1e3 * big / min(T, 1.0) ** 4
-            p0 += [rest_j, c_init if j == 0 else 0.0]
-            lo += [rest_j - big, 0.0 if j == 0 else -c_max]
-            hi += [rest_j + big, c_max]
-            scale += [sigma, max(abs(c_init), 1e-12)]
-            if quad:
-                p0 += [0.0]
-                lo += [-c_max]
-                hi += [c_max]
-                scale += [max(abs(c_init), 1e-12)]
-        p0 = np.clip(p0, np.array(lo) + 1e-12, np.array(hi) - 1e-12)
-        try:
-            res = least_squares(lambda p: ((_model(p, tw, k, quad) - Qw) / sigma).ravel(), p0,
-                                bounds=(lo, hi), x_scale=scale)
-        except ValueError:
-            continue
-        if best is None or res.cost < best.cost:
-            best = res
-    if best is None:
+    # Grid over (t_F, lambda): t_F from a little before the coarse stop (which fires
+    # early) to well after it.
+    tF_grid = np.arange(t[i_c] - 3 * dt, min(t[-1], t[i_c] + 40 * dt) + dt / 4, dt / 2)
+    lam_grid = np.linspace(1.05, 4.0, 24)
+
+    def cost(tF, lam):
+        r = _reduced_residual(tF, lam, tw, Qw, quad, sigma)
+        return float(r @ r)
+
+    grid = np.array([[cost(tF, lam) for lam in lam_grid] for tF in tF_grid])
+    i, j = np.unravel_index(np.argmin(grid), grid.shape)
+    lo, hi = [tw[0] + dt, 1.0], [t[-1] + 5 * dt, 4.0]
+    p0 = np.clip([tF_grid[i], lam_grid[j]], np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+    try:
+        best = least_squares(lambda p: _reduced_residual(p[0], p[1], tw, Qw, quad, sigma),
+                             p0, bounds=(lo, hi), x_scale=[dt, 0.1], diff_step=[1e-4, 1e-4])
+    except ValueError:
         return None, None, "final-approach fit failed"
     t_F = float(best.x[0])
+    # The main column must approach from below (a positive amplitude).
+    tau = np.maximum(t_F - tw, 0.0)
+    coef, *_ = np.linalg.lstsq(np.column_stack([np.ones_like(tw), -tau ** best.x[1]]),
+                               Qw[:, 0], rcond=None)
+    if coef[1] <= 0:
+        return None, None, "final-approach fit failed (no approach to rest)"
     if np.count_nonzero(t > t_F) < MIN_REST_FRAMES:
         return None, None, "still moving at the end of the series"
     t_F_err = None
     try:
         J = best.jac
-        s2 = 2.0 * best.cost / max(1, Qw.size - J.shape[1])
+        n_par = 2 + Qw.shape[1] * 2 + (Qw.shape[1] - 1) * int(quad)
+        s2 = 2.0 * best.cost / max(1, Qw.size - n_par)
         cov = np.linalg.pinv(J.T @ J) * s2
         t_F_err = float(np.sqrt(max(cov[0, 0], 0.0)))
     except (np.linalg.LinAlgError, ValueError):
@@ -200,20 +197,25 @@ def _first_frame_at(data: pd.DataFrame, t_stop: float | None) -> int | None:
 
 
 def _translation_coordinate(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Position along and across the direction of the final approach, (N, 2) in m."""
+    """Position along and across the initial direction of travel, (N, 2) in m.
+
+    In the paper's model the coordinate along the initial velocity follows Eq. (1)
+    exactly and the curl across it is ``x_F + A tau^lambda + B tau^2``, so these are the
+    axes in which the final-approach model holds (the direction of the *final* approach
+    would mix the curl's tau^2 term into the main coordinate).
+    """
     r = np.column_stack([x, y])
-    r_rest = np.median(r[-5:], axis=0)
-    d = np.hypot(*(r - r_rest).T)
-    total = d.max()
-    # Direction from where ~35 % of the way remains to the rest point.
-    i_a = int(np.flatnonzero(d > 0.35 * total)[-1]) if total > 0 else 0
-    lo, hi = max(0, i_a - 2), min(len(d), i_a + 3)
-    u = r_rest - r[lo:hi].mean(axis=0)
-    norm = np.hypot(*u)
-    if norm == 0:
-        return np.column_stack([d * 0.0, d * 0.0])
-    u = u / norm
-    d = r - r_rest
+    r0 = np.median(r[:3], axis=0)
+    d0 = np.hypot(*(r - r0).T)
+    total = d0.max()
+    if total <= 0:
+        return np.zeros((len(r), 2))
+    # direction from the start to where ~15 % of the largest excursion is reached
+    i_a = int(np.flatnonzero(d0 > 0.15 * total)[0])
+    lo, hi = max(0, i_a - 2), min(len(r), i_a + 3)
+    u = r[lo:hi].mean(axis=0) - r0
+    u = u / np.hypot(*u)
+    d = r - r0
     return np.column_stack([d @ u, d @ np.array([-u[1], u[0]])])
 
 
