@@ -286,8 +286,10 @@ def _progress_bar(total: int, name: str):
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
                                TimeRemainingColumn)
 
+    from rich.console import Console
+
     prog = Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(),
-                    TimeRemainingColumn(), transient=True)
+                    TimeRemainingColumn(), transient=True, console=Console(stderr=True))
     task = prog.add_task(name, total=total)
     prog.start()
     return prog, (lambda n: prog.advance(task, n))
