@@ -138,16 +138,11 @@ def build_candidates(shots, baseline: str) -> list:
                                   "(phi = 0), per channel"))
     if translating:
         if len(spins) == 2:
-            size = [Param("slope_x_mm_per_m", 0.0, -60.0, 60.0, "mm/m"),
-                    Param("slope_y_mm_per_m", 0.0, -60.0, 60.0, "mm/m")]
-            note = ("shots of both spin directions: a lateral slope (the same for both) is "
-                    "told from the curl (opposite for them)")
-        else:
-            size = [Param("slope_y_mm_per_m", 0.0, -60.0, 60.0, "mm/m")]
-            note = ("shots of one spin direction only: a lateral slope is degenerate with "
-                    "the curl a_T and is not tested; a slope along the sheet is separable "
-                    "from friction only through the shape of y(t)")
-        out.append(Candidate("ice_slope", size, note=note))
+            out.append(Candidate(
+                "ice_slope", [Param("slope_x_mm_per_m", 0.0, -60.0, 60.0, "mm/m"),
+                              Param("slope_y_mm_per_m", 0.0, -60.0, 60.0, "mm/m")],
+                note="shots of both spin directions: a lateral slope (the same for both) "
+                     "is told from the curl (opposite for them)"))
         y_max = max(float(np.nanmax(s.obs["y"][s.use["y"]])) for s in translating)
         if y_max > 1.0:
             nodes = np.linspace(0.0, y_max, 21)

@@ -161,8 +161,7 @@ class JointModel:
                 free_shared.append("a_T")
         if spin:
             free_shared += ["alpha_theta"] + ([] if baseline == "dry" else ["phi_theta"])
-        released = list(cand.releases) if cand else []
-        self.free = free_shared + [n for n in released if n not in free_shared]
+        self.free = list(free_shared)
         for i, s in enumerate(shots):
             for name in PER_SHOT:
                 key = f"{name}[{i}]"
@@ -176,9 +175,11 @@ class JointModel:
             self.bounds[name] = (lo, hi)
         if cand is not None:
             for p in cand.params:
-                self.values[p.name] = p.null
+                if p.name not in cand.releases:  # released baseline params keep values
+                    self.values[p.name] = p.null
                 self.bounds[p.name] = (p.lower, p.upper)
-                self.free.append(p.name)
+                if p.name not in self.free:
+                    self.free.append(p.name)
         self._rows = [np.logical_or.reduce([s.use[c] for c in COORDS]) for s in shots]
         self._segments = []
         i0 = 0

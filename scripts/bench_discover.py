@@ -1,0 +1,130 @@
+#!/usr/bin/env python
+"""Discovery benchmark: detection rate against effect strength, false alarms, time.
+
+For each effect, shots are simulated with the effect hidden at a strength from a
+doubling grid (random location/sign/shot, 2 mm and 0.3 deg noise) and ``discover`` is
+run; a detection is a verdict naming the effect.  The smallest strength found 90 % of
+the time is interpolated from the table.  Clean shots (baseline + noise) give the
+false-alarm rate (verdict != "none").  Everything is seeded.
+
+Usage::
+
+    python scripts/bench_discover.py [--trials 10] [--clean 40] [--effects pick,late_curl]
+        [--json OUT.json]
+
+The functions are importable (``detection_rate``, ``false_alarm_rate``,
+``detection_table``) for the main benchmark.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "discover"))
+
+from _synth import make_case  # noqa: E402
+
+from curltrack.discover import discover  # noqa: E402
+
+#: strength grids (doubling), chosen around where detection sets in at 2 mm noise
+GRIDS = {
+    "pick": [0.0005, 0.001, 0.002, 0.004, 0.008],
+    "friction_patch": [0.005, 0.01, 0.02, 0.04, 0.08],
+    "late_curl": [0.01, 0.02, 0.04, 0.08, 0.16],
+    "ice_slope": [0.1, 0.2, 0.4, 0.8, 1.6],
+    "velocity_dependent_friction": [0.01, 0.02, 0.04, 0.08, 0.16],
+}
+
+
+def run_one(effect: str, strength: float, seed: int, n_shots: int = 1) -> dict:
+    """One simulated case through ``discover``: verdict, seconds, shots."""
+    rng = np.random.default_rng(seed)
+    shots, truth = make_case(effect, strength, rng, n_shots=n_shots)
+    t0 = time.perf_counter()
+    rep = discover(shots, baseline=truth["baseline"], seed=seed)
+    return {"effect": effect, "strength": strength, "seed": seed,
+            "verdict": rep["verdict"], "seconds": time.perf_counter() - t0,
+            "n_shots": len(shots)}
+
+
+def detection_rate(effect: str, strength: float, trials: int = 10, seed0: int = 0,
+                   n_shots: int = 1) -> dict:
+    """Fraction of ``trials`` simulated cases whose verdict names ``effect``."""
+    runs = [run_one(effect, strength, seed0 + i, n_shots) for i in range(trials)]
+    hits = sum(r["verdict"] == effect for r in runs)
+    return {"effect": effect, "strength": strength, "trials": trials, "rate": hits / trials,
+            "verdicts": [r["verdict"] for r in runs],
+            "seconds_mean": float(np.mean([r["seconds"] for r in runs]))}
+
+
+def strength_90(rows) -> float | None:
+    """Smallest strength with detection >= 90 %, interpolated linearly in log strength."""
+    rows = sorted(rows, key=lambda r: r["strength"])
+    for a, b in zip([None] + rows[:-1], rows):
+        if b["rate"] >= 0.9:
+            if a is None or a["rate"] >= 0.9:
+                return b["strength"]
+            f = (0.9 - a["rate"]) / (b["rate"] - a["rate"])
+            return float(np.exp(np.log(a["strength"]) + f * np.log(b["strength"] / a["strength"])))
+    return None
+
+
+def detection_table(effects=None, trials: int = 10, seed0: int = 1000, log=print) -> dict:
+    """Detection rate against strength for each effect, and the 90 % strength."""
+    out = {}
+    for eff in effects or GRIDS:
+        rows = []
+        for s in GRIDS[eff]:
+            row = detection_rate(eff, s, trials, seed0)
+            rows.append(row)
+            log(f"{eff:28s} strength {s:<8g} rate {row['rate']:.2f}  "
+                f"({row['seconds_mean']:.1f} s/case)  {row['verdicts']}")
+            if row["rate"] == 1.0 and len(rows) >= 2 and rows[-2]["rate"] == 1.0:
+                break
+        out[eff] = {"rows": rows, "strength_90": strength_90(rows)}
+    return out
+
+
+def false_alarm_rate(n: int = 40, seed0: int = 5000, log=print) -> dict:
+    """Verdicts on ``n`` clean simulated shots (baseline model + noise)."""
+    runs = [run_one("none", 0.0, seed0 + i) for i in range(n)]
+    bad = [r for r in runs if r["verdict"] != "none"]
+    res = {"n": n, "false_alarms": len(bad), "rate": len(bad) / n,
+           "verdicts": [r["verdict"] for r in bad],
+           "seconds_mean": float(np.mean([r["seconds"] for r in runs])),
+           "seconds_max": float(np.max([r["seconds"] for r in runs]))}
+    log(f"false alarms: {res['false_alarms']}/{n} = {res['rate']:.3f} "
+        f"({res['seconds_mean']:.1f} s/shot mean, {res['seconds_max']:.1f} s max) {res['verdicts']}")
+    return res
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--trials", type=int, default=10)
+    ap.add_argument("--clean", type=int, default=40)
+    ap.add_argument("--effects", default=",".join(GRIDS))
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+    effects = [e for e in args.effects.split(",") if e]
+    res = {"false_alarm": false_alarm_rate(args.clean) if args.clean else None,
+           "detection": detection_table(effects, args.trials) if effects else {}}
+    print("\n| effect | strength unit | 90 % detection strength | 3x (test 'moderate') |")
+    print("|---|---|---|---|")
+    from _synth import STRENGTH
+
+    for eff, d in res["detection"].items():
+        s90 = d["strength_90"]
+        print(f"| {eff} | {STRENGTH[eff]} | {s90 if s90 is not None else '> grid'} | "
+              f"{3 * s90 if s90 is not None else '-'} |")
+    if args.json:
+        Path(args.json).write_text(json.dumps(res, indent=2))
+
+
+if __name__ == "__main__":
+    main()
