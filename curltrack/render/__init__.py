@@ -13,6 +13,7 @@ from .motion import CameraConfig, CameraPath
 from .production import FrameInfo, Production
 from .scene import IceStyle
 from .video import render_video
+from .benchmark import render_benchmark
 
 __all__ = ["Camera", "CameraConfig", "CameraPath", "FrameInfo", "IceStyle", "Production",
-           "RenderConfig", "render_video"]
+           "RenderConfig", "render_benchmark", "render_video"]

@@ -62,6 +62,7 @@ class Compositor:
         self.map1, self.map2 = cv2.convertMaps(m[..., 0], m[..., 1], cv2.CV_16SC2)
         r2 = ((uu - camera.cx) ** 2 + (vv - camera.cy) ** 2)
         self.vignette = (1.0 - vignetting * (r2 / r2.max()) ** 1.25).astype(np.float32)
+        self.vignette3 = np.repeat(self.vignette[..., None], 3, axis=2)
         self.read_noise, self.gain = float(read_noise), float(shot_noise_gain)
         self.jpeg_quality = jpeg_quality
         self.rng = rng
@@ -96,22 +97,50 @@ class Compositor:
             boxes.append(np.r_[p.min(0), p.max(0)])
         return homs, boxes
 
-    def _bg_count(self, cam_first: Camera, cam_last: Camera, tex: Texture) -> int:
-        """Background sub-frames needed for steps <= ``max_step_px`` over the exposure."""
+    def _bg_motion(self, cam_first: Camera, cam_last: Camera, tex: Texture):
+        """How the ice moves in the canvas over the exposure.
+
+        Returns ``(n, d, uniform)``: background sub-frames needed for steps of at most
+        ``max_step_px``, the displacement at the canvas centre (px), and whether the
+        motion is a translation over the whole canvas to 0.25 px or 6 % (tilt and wobble
+        make it slightly uneven); then the average of shifted copies stands for the
+        average of warps (the blur length is right to that tolerance).
+        """
         w, h = self.canvas_size
         pts = np.array([[0, 0, 1], [w, 0, 1], [0, h, 1], [w, h, 1], [w / 2, h / 2, 1.0]])
         M = self.ice_homography(cam_last, tex) @ np.linalg.inv(self.ice_homography(cam_first, tex))
         q = pts @ M.T
-        disp = np.hypot(*(q[:, :2] / q[:, 2:] - pts[:, :2]).T).max()
-        return int(np.ceil(disp / self.max_step_px)) + 1
+        disp = q[:, :2] / q[:, 2:] - pts[:, :2]
+        n = int(np.ceil(np.hypot(*disp.T).max() / self.max_step_px)) + 1
+        spread = np.hypot(*(disp - disp[-1]).T).max()
+        uniform = spread < max(0.25, 0.06 * np.hypot(*disp[-1]))
+        return n, disp[-1], uniform
+
+    @staticmethod
+    def _shift_kernel(offsets):
+        """Correlation kernel averaging bilinear copies shifted by ``offsets`` (k, 2) px."""
+        s = -np.asarray(offsets, dtype=float)
+        half = int(np.ceil(np.abs(s).max())) + 1
+        K = np.zeros((2 * half + 1, 2 * half + 1), np.float32)
+        for sx, sy in s:
+            ax, ay = int(np.floor(sx)), int(np.floor(sy))
+            fx, fy = sx - ax, sy - ay
+            for dy, wy in ((0, 1 - fy), (1, fy)):
+                for dx, wx in ((0, 1 - fx), (1, fx)):
+                    K[half + ay + dy, half + ax + dx] += wx * wy / len(s)
+        rows, cols = np.flatnonzero(K.any(1)), np.flatnonzero(K.any(0))
+        K = K[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
+        return K, (half - cols[0], half - rows[0])
 
     def frame(self, times, cam_at, layers_at, tex: Texture) -> np.ndarray:
         """Render one frame exposed over the sub-frame ``times`` (s).
 
-        The whole view is averaged over enough background sub-frames that consecutive
-        ones differ by at most ``max_step_px`` (the camera often barely moves within an
-        exposure); the box around the rock (and broom) is averaged over every sub-frame
-        with the ice warped into the box for each, so the moving rock's blur is exact.
+        The ice: when the camera translates (the ice moves alike over the whole view,
+        see :meth:`_bg_motion`) the sub-frame average is one warp convolved with the kernel of the
+        sub-frames' shifts; otherwise enough warps that consecutive ones differ by at most
+        ``max_step_px`` are averaged.  The box around the rock (and broom) is averaged
+        over every sub-frame, with the ice warped into the box for each, so the moving
+        rock's blur is the exact sub-frame average.
 
         Parameters
         ----------
@@ -125,20 +154,31 @@ class Compositor:
         """
         cams = [cam_at(t) for t in times]
         n = len(times)
-        n_bg = min(n, self._bg_count(cams[0], cams[-1], tex)) if n > 1 else 1
-        if n_bg == n:
-            bg_cams = cams
-        elif n_bg == 1:
-            bg_cams = [cam_at(0.5 * (times[0] + times[-1]))]
-        else:
-            bg_cams = [cam_at(t) for t in np.linspace(times[0], times[-1], n_bg)]
         size = self.canvas_size
-        self.acc[:] = 0.0
-        for c in bg_cams:
-            bg = cv2.warpPerspective(tex.image, self.ice_homography(c, tex), size,
+        n_bg, d, uniform = self._bg_motion(cams[0], cams[-1], tex) if n > 1 else (1, 0, True)
+        if n_bg <= 1 or (uniform and n_bg > 1 and np.abs(d).max() < 24):
+            # one warp at mid-exposure; a camera translating over the ice shifts the
+            # whole canvas alike, so the sub-frame average is a small shift kernel
+            mid = cam_at(0.5 * (times[0] + times[-1]))
+            bg = cv2.warpPerspective(tex.image, self.ice_homography(mid, tex), size,
                                      flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-            cv2.accumulate(bg, self.acc)
-        self.acc *= 1.0 / len(bg_cams)
+            if n_bg <= 1:
+                self.acc[:] = bg
+            else:
+                frac = np.linspace(-0.5, 0.5, n)[:, None]
+                K, anchor = self._shift_kernel(frac * np.asarray(d)[None, :])
+                cv2.filter2D(bg.astype(np.float32), -1, K, dst=self.acc, anchor=anchor,
+                             borderType=cv2.BORDER_REFLECT)
+        else:
+            bg_cams = cams if n_bg >= n else [cam_at(t) for t in
+                                              np.linspace(times[0], times[-1], n_bg)]
+            self.acc[:] = 0.0
+            for c in bg_cams:
+                bg = cv2.warpPerspective(tex.image, self.ice_homography(c, tex), size,
+                                         flags=cv2.INTER_LINEAR,
+                                         borderMode=cv2.BORDER_REFLECT)
+                cv2.accumulate(bg, self.acc)
+            self.acc *= 1.0 / len(bg_cams)
         per_sub = [self._sprite_boxes(c, layers_at(t)) for c, t in zip(cams, times)]
         boxes = [b for _, bx in per_sub for b in bx]
         if not boxes:
@@ -169,16 +209,19 @@ class Compositor:
     def _finish(self) -> np.ndarray:
         """Distort, vignette, add noise; the final BGR uint8 frame."""
         img = cv2.remap(self.acc, self.map1, self.map2, cv2.INTER_LINEAR)
-        img *= self.vignette[..., None]
+        cv2.multiply(img, self.vignette3, dst=img)
         if self.read_noise > 0 or self.gain > 0:
             H, W = img.shape[:2]
             bank = self._bank[int(self.rng.integers(len(self._bank)))]
             oy, ox = self.rng.integers(0, self._pad, 2)
             noise = bank[oy:oy + H, ox:ox + W]
-            sigma = np.sqrt(self.read_noise**2 + self.gain * np.maximum(img, 0.0))
-            img += noise * sigma
-        np.clip(img, 0, 255, out=img)
-        out = (img + 0.5).astype(np.uint8)
+            # sigma^2 = read^2 + gain * signal (shot noise), signal clipped at 0
+            var = cv2.max(img, 0.0)
+            cv2.addWeighted(var, self.gain, var, 0.0, self.read_noise**2, dst=var)
+            cv2.sqrt(var, dst=var)
+            cv2.multiply(var, noise, dst=var)
+            cv2.add(img, var, dst=img)
+        out = cv2.convertScaleAbs(cv2.max(img, 0.0))  # rounds, saturates at 255
         if self.jpeg_quality:
             ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(self.jpeg_quality)])
             out = cv2.imdecode(buf, cv2.IMREAD_COLOR)

@@ -118,6 +118,8 @@ class Production:
                                  30000 / max(bounds[2] - bounds[0], bounds[3] - bounds[1])))
         world_phase = (self.phase[0] * rig.spacing_x_m, self.phase[1] * rig.spacing_y_m)
         self.tex = ice_texture(rig, bounds, self.ppm_tex, world_phase, cfg.ice, rng)
+        if abs(np.sin(path.yaw0)) > abs(np.cos(path.yaw0)):  # image rows along world Y
+            self.tex = self.tex.transpose()
         ppm_rock = 1.5 * path.f_px / (self.cam_cfg.height_m - rig.rock_height_m)
         self.sprites = rock_sprites(rig, ppm_rock, rng, 1.5 / ppm_rock,
                                     marker_diameter_m=cfg.marker_diameter_m)
@@ -138,7 +140,9 @@ class Production:
         P = self.traj.rock_xy(np.array([self.t_occ]))[0]
         across = self.traj.travel_yaw + np.pi / 2
         s = self.cfg.occlusion_speed_m_s * (t - self.t_occ)
-        return pose_matrix(P[0] + s * np.cos(across), P[1] + s * np.sin(across), across)
+        # head's long side along the travel, shaft towards the sweeper's side (-across)
+        return pose_matrix(P[0] + s * np.cos(across), P[1] + s * np.sin(across),
+                           self.traj.travel_yaw)
 
     def layers_at(self, t: float):
         """(Sprite, world pose) of everything above the ice at time ``t``, bottom to top."""

@@ -25,19 +25,32 @@ def bgr(color) -> np.ndarray:
 
 @dataclass
 class Texture:
-    """An image of a plane, with ``world = (X0 + col / ppm, Y0 + row / ppm)`` (m)."""
+    """An image of a plane: ``world = (X0 + col / ppm, Y0 + row / ppm)`` (m), or with
+    ``transposed`` ``world = (X0 + row / ppm, Y0 + col / ppm)``.
+
+    Storing the texture with its rows along the image's rows keeps the per-frame warp
+    reading memory in order (twice as fast when the camera looks along world Y).
+    """
 
     image: np.ndarray
     X0: float
     Y0: float
     ppm: float
     z_m: float = 0.0
+    transposed: bool = False
 
     @property
     def affine(self) -> np.ndarray:
         """3x3 map from (col, row, 1) to world (X, Y, 1)."""
         s = 1.0 / self.ppm
+        if self.transposed:
+            return np.array([[0, s, self.X0], [s, 0, self.Y0], [0, 0, 1.0]])
         return np.array([[s, 0, self.X0], [0, s, self.Y0], [0, 0, 1.0]])
+
+    def transpose(self) -> "Texture":
+        """The same texture stored the other way round."""
+        return Texture(np.ascontiguousarray(self.image.transpose(1, 0, 2)), self.X0, self.Y0,
+                       self.ppm, self.z_m, not self.transposed)
 
 
 @dataclass(frozen=True)
@@ -297,7 +310,7 @@ def _handle_direction(markers_xy, length):
 def broom_sprite(ppm: float, rng: np.random.Generator, head_m=(0.28, 0.09),
                  color: str = "#202020") -> Sprite:
     """A broom head seen from above (local x along the head), with a stub of its shaft."""
-    half = 0.5 * max(head_m) + 0.35
+    half = 0.5 * max(head_m) + 0.6
     x, y = _grid(half, ppm)
     head = (np.clip(0.5 + (head_m[0] / 2 - np.abs(x)) * ppm, 0, 1)
             * np.clip(0.5 + (head_m[1] / 2 - np.abs(y)) * ppm, 0, 1)).astype(np.float32)
