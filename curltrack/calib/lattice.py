@@ -318,3 +318,49 @@ def per_line_offsets(xs, w, Hc, K, dist, band_px: float = 3.0):
         out[name] = lines
     out["rms_px"] = float(np.sqrt(np.mean(np.square(offs)))) if offs else float("nan")
     return out
+
+
+def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float = 2.0):
+    """Refine ``Hc`` on thread points of known family (0/1) and thread index.
+
+    Robust (Tukey, ``clip_px`` scaled by the residuals' spread) weighted Gauss-Newton;
+    the lens is fixed.
+
+    Returns
+    -------
+    Hc, info : ndarray, dict
+        ``info``: ``rms_px`` (weighted RMS residual), ``n_a``, ``n_b`` (points used),
+        ``lines_a``, ``lines_b``, ``sigma_px`` (1-sigma of the lattice position at the
+        image centre, from the normal equations).
+    """
+    f, c = K[0, 0], K[:2, 2]
+    q = (undistort(xy, K, dist) - c) / f
+    fam_a, fam_b = fam == 0, fam == 1
+    ia = ib = idx.astype(float)
+    info = {}
+    scale = clip_px
+    for _ in range(iterations):
+        pa, pb = periods_px(Hc, f)
+        r = _residuals(Hc, q, fam_a, fam_b, ia, ib, pa, pb)
+        ww = np.concatenate([w[fam_a], w[fam_b]])
+        mad = 1.4826 * np.median(np.abs(r))
+        scale = max(clip_px, 4.5 * mad)
+        ww = ww * np.clip(1 - (r / scale) ** 2, 0, None) ** 2
+        J = _h_jacobian(Hc, q, fam_a, fam_b, pa, pb)
+        JW = J * ww[:, None]
+        A = J.T @ JW
+        A += 1e-9 * np.trace(A) * np.eye(8)
+        step = np.linalg.solve(A, -JW.T @ r)
+        Hc = Hc + np.append(step, 0.0).reshape(3, 3)
+        used = ww > 0
+        rms = float(np.sqrt(np.sum(ww * r * r) / max(ww.sum(), 1e-12)))
+        # 1-sigma of the translation terms h2, h5 (cells) -> px at the image centre
+        dof = max(int(used.sum()) - 8, 1)
+        cov = np.linalg.inv(A) * np.sum(ww * r * r) / dof
+        sig = float(np.sqrt(cov[2, 2] * pa ** 2 + cov[5, 5] * pb ** 2))
+        info = {"rms_px": rms, "n_a": int(np.sum(used[:fam_a.sum()])),
+                "n_b": int(np.sum(used[fam_a.sum():])),
+                "lines_a": int(len(np.unique(ia[fam_a][used[:fam_a.sum()]]))),
+                "lines_b": int(len(np.unique(ib[fam_b][used[fam_a.sum():]]))),
+                "sigma_px": sig}
+    return Hc, info

@@ -59,12 +59,12 @@ class ColourModel:
         return cls(np.asarray(d["ice_bgr"], float), None if dirs is None else np.asarray(dirs))
 
 
-def local_contrast(image_bgr) -> np.ndarray:
+def local_contrast(image_bgr, sigma_px: float = BG_SIGMA_PX) -> np.ndarray:
     """Pixel minus its local background (float32, H x W x 3)."""
     import cv2
 
     img = image_bgr.astype(np.float32)
-    return img - cv2.GaussianBlur(img, (0, 0), BG_SIGMA_PX)
+    return img - cv2.GaussianBlur(img, (0, 0), sigma_px)
 
 
 def thread_response(image_bgr, model: ColourModel, contrast=None) -> np.ndarray:
@@ -73,11 +73,12 @@ def thread_response(image_bgr, model: ColourModel, contrast=None) -> np.ndarray:
 
     diff = local_contrast(image_bgr) if contrast is None else contrast
     if model.directions is None:
-        return np.sqrt((diff * diff).sum(axis=2))
+        return cv2.magnitude(cv2.magnitude(diff[:, :, 0], diff[:, :, 1]), diff[:, :, 2])
     proj = cv2.transform(diff, model.directions.astype(np.float32))
     if proj.ndim == 2:
-        proj = proj[:, :, None]
-    return np.maximum(proj.max(axis=2), 0.0)
+        return np.maximum(proj, 0.0)
+    # (numpy's max over a short last axis is slow; reduce channel by channel)
+    return np.maximum(np.maximum.reduce([proj[:, :, i] for i in range(proj.shape[2])]), 0.0)
 
 
 def noise_threshold(resp, mask=None, n_sigma: float = 3.0) -> float:

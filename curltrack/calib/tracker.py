@@ -15,14 +15,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .grid import (Calibration, PlaneMap, cells_from_metric, colour_phase, line_colours,
-                   metric_from_cells)
-from .lattice import assign_families, fit_lattice, periods_px
+from .grid import Calibration, PlaneMap, cells_from_metric, colour_phase, metric_from_cells
+from .lattice import fit_points, periods_px
+from .profiles import sample_threads
 from .lens import apply_h, undistort
-from .response import candidate_pixels, local_contrast, thread_response
 
 MAX_PIXELS = 40_000  # thread pixels used per frame (a fixed subsample beyond this)
-AMBIGUOUS_CELLS = 0.35  # unexplained jump (cells) beyond which the index is not trusted
+AMBIGUOUS_CELLS = 0.35
+PROFILE_STEP_PX = 14.0  # spacing of the cross profiles along each thread (px)
+COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap  # unexplained jump (cells) beyond which the index is not trusted
 
 
 @dataclass
@@ -92,6 +93,7 @@ class GridTracker:
         self._ref = c + np.array([[-0.25, -0.25], [0.25, -0.25], [0.25, 0.25],
                                   [-0.25, 0.25]]) * (w, h)
         self._history: list[tuple[int, np.ndarray]] = [(None, calib.H)]
+        self._pred_err_px = 0.0  # running size of the prediction error (px)
 
     # -- prediction ------------------------------------------------------------------
     def _predict(self, index: int) -> np.ndarray:
@@ -114,6 +116,38 @@ class GridTracker:
         return (apply_h(np.linalg.inv(H_pred), apply_h(prev, c)) - c)[0]
 
     # -- per frame -------------------------------------------------------------------
+    def _measure(self, image_bgr, Hc_pred, mask, motion, coarse: bool):
+        """Snap (optionally coarse first) and refine on thread profiles.
+
+        Returns (Hc, info, obs); info None when too few thread points were found.
+        """
+        f = self.K[0, 0]
+        Hc = Hc_pred
+        J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])
+        normals = J / np.linalg.norm(J, axis=1, keepdims=True)
+        blur = np.abs(normals @ motion)  # px of motion across each family per frame
+        gap = 4.0 + 0.5 * blur
+        if coarse:
+            # Sparse profiles spanning almost a whole cell find the nearest alignment.
+            half = [0.45 * p for p in periods_px(Hc, f)]
+            obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model,
+                                 half, step_px=COARSE_STEP_PX, mask=mask, gap_px=gap)
+            if obs is None or np.sum(obs["fam"] == 0) < 6 or np.sum(obs["fam"] == 1) < 6:
+                return Hc, None, obs
+            Hc, _ = fit_points(obs["xy"], obs["w"], obs["fam"], obs["idx"], Hc, self.K,
+                               self.dist, iterations=2, clip_px=4.0)
+        # Profile half-lengths: prediction error plus motion blur across the threads.
+        base = 5.0 if coarse else 8.0
+        half = [min(base + 0.5 * blur[j], 0.4 * p) for j, p in enumerate(periods_px(Hc, f))]
+        obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model, half,
+                             step_px=PROFILE_STEP_PX, mask=mask, gap_px=gap + base - 3.0)
+        if obs is None or np.sum(obs["fam"] == 0) < 10 or np.sum(obs["fam"] == 1) < 10:
+            return Hc, None, obs
+        Hc, info = fit_points(obs["xy"], obs["w"], obs["fam"], obs["idx"], Hc, self.K,
+                              self.dist, iterations=3)
+        info["ok_fraction"] = min(obs["found"])
+        return Hc, info, obs
+
     def update(self, image_bgr, index: int, mask=None) -> GridPose:
         """Measure the lattice in one frame.
 
@@ -132,70 +166,62 @@ class GridTracker:
             is ambiguous; ``H`` is then the motion prediction.
         """
         K, dist = self.K, self.dist
-        f, c = K[0, 0], K[:2, 2]
+        f = K[0, 0]
         H_pred = self._predict(index)
-        Hc = cells_from_metric(H_pred, K, self.sx, self.sy)
-        Hc_pred = Hc.copy()
-        contrast = local_contrast(image_bgr)
-        resp = thread_response(image_bgr, self.calib.colour_model, contrast)
-        xs, w = candidate_pixels(resp, mask, max_n=self.max_pixels, seed=index)
+        Hc_pred = cells_from_metric(H_pred, K, self.sx, self.sy)
 
         def failed(msg):
             return GridPose(index, False, msg, H_pred, K, dist)
 
-        if len(xs) < 100:
-            return failed("grid not visible (almost no thread pixels)")
-        q = (undistort(xs, K, dist) - c) / f
-        # Fractional snap: circular mean of the cell coordinates of the thread pixels.
-        ab = apply_h(Hc, q)
-        za = np.sum(w * np.exp(2j * np.pi * ab[:, 0]))
-        zb = np.sum(w * np.exp(2j * np.pi * ab[:, 1]))
-        da, db = np.angle(za) / (2 * np.pi), np.angle(zb) / (2 * np.pi)
-        Hc = np.array([[1.0, 0, -da], [0, 1.0, -db], [0, 0, 1]]) @ Hc
-        # Bands wide enough for motion blur across a family's threads.
-        pa, pb = periods_px(Hc, f)
         motion = self._motion_px(H_pred)
-        J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])
-        na, nb = J[0] / np.linalg.norm(J[0]), J[1] / np.linalg.norm(J[1])
-        bands = (min(3.0 + 0.5 * abs(motion @ na), 0.4 * pa),
-                 min(3.0 + 0.5 * abs(motion @ nb), 0.4 * pb))
-        Hc, _, _, info = fit_lattice(xs, w, Hc, K, dist, band_px=bands, iterations=3)
-        if not info or info["lines_a"] < 2 or info["lines_b"] < 2:
+        smooth = (len(self._history) >= 2 and self._history[-2][0] is not None
+                  and self._pred_err_px < 4.0)
+        for attempt in ((False, True) if smooth else (True,)):
+            Hc, info, obs = self._measure(image_bgr, Hc_pred, mask, motion, coarse=attempt)
+            if info is None:
+                continue
+            moved = np.abs(apply_h(Hc, np.zeros((1, 2)))[0]
+                           - apply_h(Hc_pred, np.zeros((1, 2)))[0]) * periods_px(Hc, f)
+            # without the coarse snap the profiles only see +-8 px around the prediction
+            if attempt or (moved.max() < 5.0 and info["ok_fraction"] > 0.6):
+                break
+        if info is None:
+            return failed("grid not visible (too few thread points)")
+        if info["lines_a"] < 2 or info["lines_b"] < 2:
             return failed("grid not visible (fewer than 2 threads in a family)")
-        # Integer cell index: jump relative to the prediction at the image centre.
         jump = apply_h(Hc, np.zeros((1, 2)))[0] - apply_h(Hc_pred, np.zeros((1, 2)))[0]
-        k, note = self._colour_correction(contrast, xs, w, q, Hc, jump, bands)
+        n = self.calib.n_colors if self.calib.colors_resolved else 0
+        k, note = self._colour_correction(obs, jump, n)
         Hc = np.array([[1.0, 0, k[0]], [0, 1.0, k[1]], [0, 0, 1]]) @ Hc
         jump = jump + k
         H = metric_from_cells(Hc, K, self.sx, self.sy)
         pa, pb = periods_px(Hc, f)
-        n_lines = info["lines_a"] + info["lines_b"]
-        sigma = info["rms_px"] / np.sqrt(max(min(info["n_a"], info["n_b"]), 1) / 50.0)
         pose = GridPose(index, True, note, H, K, dist, spacing_px=float(np.sqrt(pa * pb)),
-                        residual_px=info["rms_px"], n_threads=int(n_lines),
-                        sigma_px=float(sigma), jump_cells=(float(jump[0]), float(jump[1])))
+                        residual_px=info["rms_px"],
+                        n_threads=int(info["lines_a"] + info["lines_b"]),
+                        sigma_px=info["sigma_px"], jump_cells=(float(jump[0]), float(jump[1])))
         if np.max(np.abs(jump)) > AMBIGUOUS_CELLS and not note:
             pose.ok = False
             pose.message = (f"cell index ambiguous: the grid moved {np.max(np.abs(jump)):.2f} "
                             "cells more than predicted and the thread colours cannot tell")
             return pose
+        err = float(np.hypot(*(np.asarray(jump) * (pa, pb))))
+        self._pred_err_px = 0.5 * self._pred_err_px + 0.5 * err
         self._history = (self._history + [(index, H)])[-2:]
         return pose
 
-    def _colour_correction(self, contrast, xs, w, q, Hc, jump, bands):
+    def _colour_correction(self, obs, jump, n):
         """Integer cell shift (cells) that makes the thread colours match the sequence."""
-        n = self.calib.n_colors
-        if not self.calib.colors_resolved or n < 2:
+        if n < 2 or obs["colour"] is None:
             return np.zeros(2), ""
-        f = self.K[0, 0]
-        ab = apply_h(Hc, q)
-        pa, pb = periods_px(Hc, f)
-        fam_a, fam_b, ia, ib = assign_families(ab[:, 0], ab[:, 1], pa, pb, bands)
-        model = self.calib.colour_model
         k = np.zeros(2)
         notes = []
-        for j, (fam, idx) in enumerate(((fam_a, ia), (fam_b, ib))):
-            cols = line_colours(contrast, xs, ab, fam, idx, j, model)
+        for j in (0, 1):
+            sel = obs["fam"] == j
+            ids = obs["idx"][sel]
+            cols = {}
+            for i in np.unique(ids):
+                cols[int(i)] = int(np.argmax(obs["colour"][sel][ids == i].sum(axis=0)))
             p, agree = colour_phase(cols, n)
             if agree < 0.8 or len(cols) < n + 1 or p == 0:
                 continue
