@@ -224,6 +224,17 @@ class MarkerDetector:
                 d_rig = np.hypot(*(self.layout_m[a] - self.layout_m[b]))
                 ratios.append(d_img / d_rig)
             ratios = np.array(ratios)
+            if len(found) >= 3:
+                # Handedness: seen from above with the image's y down, the image is a
+                # mirror of the (right-handed) rock frame; a swapped pair of same-coloured
+                # markers fits a rotation+scale only with a reflection.
+                from .parallax import similarity_fit
+
+                pts = np.array([combo[i][1] for i in found]) * (1.0, -1.0)
+                lay = self.layout_m[found]
+                _, _, sc, rms = similarity_fit(lay, pts)
+                cost += 100.0 * rms / max(sc * np.sqrt(np.mean(np.sum(
+                    (lay - lay.mean(0)) ** 2, axis=1))), 1e-9)
             spread = float(np.std(ratios) / max(np.mean(ratios), 1e-9)) if len(ratios) > 1 else 0
             # Blobs of one rock: similar sizes and a consistent scale.
             areas = np.array([combo[i][2] for i in found])
