@@ -62,7 +62,7 @@ class IceStyle:
     ice_color : str
         Base colour of the lit ice ("#rrggbb"), default "#e2e8ec" (bluish white).
     illumination : float
-        Relative RMS of the slow, uneven illumination across the sheet, default 0.06.
+        Relative RMS of the uneven illumination (overhead lamps) over the sheet, 0.08.
     pebble_density_per_m2 : float
         Pebbles (frozen droplets) per m^2, default 3000.
     pebble_size_m : float
@@ -82,7 +82,7 @@ class IceStyle:
     """
 
     ice_color: str = "#e2e8ec"
-    illumination: float = 0.06
+    illumination: float = 0.08
     pebble_density_per_m2: float = 3000.0
     pebble_size_m: float = 0.0025
     pebble_contrast: float = 14.0
@@ -144,13 +144,20 @@ def ice_texture(rig: Rig, bounds, ppm: float, phase, style: IceStyle,
     col_x = np.stack(colors)[kx[near_x] % len(colors)]  # (W, 3)
     col_y = np.stack(colors)[ky[near_y] % len(colors)]  # (H, 3)
 
-    # Slow illumination: a separable sum of 2-D cosines (wavelengths 0.6-5 m) -> one matmul.
-    n = 12
-    kvec = 2 * np.pi / rng.uniform(0.6, 5.0, (n, 2)) * rng.choice([-1, 1], (n, 2))
-    ph = rng.uniform(0, 2 * np.pi, (n, 2))
-    amp = style.illumination * np.sqrt(4.0 / n)
-    cx = np.cos(Xc[:, None] * kvec[:, 0] + ph[:, 0]).astype(np.float32)       # (W, n)
-    cy = (amp * np.cos(Yc[:, None] * kvec[:, 1] + ph[:, 1])).astype(np.float32)  # (H, n)
+    # Uneven illumination: overhead lamps on a jittered grid, each a broad separable
+    # Gaussian pool of light -> the field is one matmul per strip.
+    lx = np.arange(X0 - 3.0, X1 + 3.0, 2.5)
+    ly = np.arange(Y0 - 3.0, Y1 + 3.5, 3.5)
+    lamps = np.stack(np.meshgrid(lx, ly), -1).reshape(-1, 2)
+    lamps = lamps + rng.uniform(-0.8, 0.8, lamps.shape)
+    sig = rng.uniform(0.8, 1.6, lamps.shape)
+    amp = rng.uniform(0.6, 1.0, len(lamps))
+    gx = np.exp(-0.5 * ((Xc[:, None] - lamps[:, 0]) / sig[:, 0]) ** 2).astype(np.float32)
+    gy = (amp * np.exp(-0.5 * ((Yc[:, None] - lamps[:, 1]) / sig[:, 1]) ** 2)).astype(np.float32)
+    coarse = gy[::16] @ gx[::16].T
+    f_mean, f_std = float(coarse.mean()), float(coarse.std()) + 1e-9
+    gy *= style.illumination / f_std
+    light_offset = 1.0 - style.illumination * f_mean / f_std
 
     base = bgr(style.ice_color)
     image = np.empty((H, W, 3), np.uint8)
@@ -159,7 +166,7 @@ def ice_texture(rig: Rig, bounds, ppm: float, phase, style: IceStyle,
     for r0 in range(0, H, strip_rows):
         r1 = min(H, r0 + strip_rows)
         h = r1 - r0
-        light = 1.0 + cy[r0:r1] @ cx.T                                  # (h, W)
+        light = light_offset + gy[r0:r1] @ gx.T                         # (h, W)
         dots = (rng.random((h, W), dtype=np.float32) < p_texel).astype(np.float32)
         dots *= rng.uniform(0.4, 1.0, (h, W)).astype(np.float32)
         peb = cv2.GaussianBlur(dots, (0, 0), sigma) * (2 * np.pi * sigma**2)
