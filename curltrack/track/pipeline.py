@@ -185,6 +185,13 @@ def track_frames(frames, rig: Rig, path=None, n_expected: int | None = None,
         rec.contrast = float(np.min(mf.contrast))
         if pose.message:
             rec.notes.append(pose.message)
+    if records and not seen_markers:
+        raise TrackingError(
+            f"no markers of the rig's colours ({', '.join(m.color for m in rig.markers)}) "
+            f"found in frames {records[0].frame}-{records[-1].frame}", path=path)
+    if records and calib is None:
+        raise TrackingError(f"no grid found in frames {records[0].frame}-{records[-1].frame}"
+                            f": {calib_msg}", path=path)
     return records, {"calib": calib, "calib_msg": calib_msg, "n_markers": len(L)}
 
 

@@ -1,0 +1,113 @@
+"""End to end: simulated shot -> rendered video -> track_video -> compared with truth."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from curltrack.errors import TrackingError
+from curltrack.physics.shot import ShotModel
+from curltrack.rig import Marker, default_rig
+from curltrack.simulate import simulate_series
+
+
+def _render(tmp, motion, seed, v0):
+    from curltrack.render import CameraConfig, RenderConfig, render_video
+
+    rig = default_rig()
+    sim = simulate_series(ShotModel(v0=v0, omega0=1.5, alpha_y=0.03), fps=30)
+    video = tmp / f"{motion}{seed}.mp4"
+    truth = render_video(sim, rig, video, tmp / f"{motion}{seed}_truth.csv",
+                         config=RenderConfig(camera=CameraConfig(motion=motion)), seed=seed)
+    return video, truth, rig
+
+
+@pytest.fixture(scope="session")
+def ladder_video(tmp_path_factory):
+    return _render(tmp_path_factory.mktemp("ladder"), "ladder", 0, 0.6)
+
+
+@pytest.fixture(scope="session")
+def ladder_tracked(ladder_video):
+    from curltrack.track import track_video
+
+    video, truth, rig = ladder_video
+    return track_video(video, rig)
+
+
+def _compare(series, truth):
+    m = series.data.merge(truth.data[["frame", "x", "y", "theta"]], on="frame",
+                          suffixes=("", "_t"))
+    ok = m["ok"] == 1
+    e = np.hypot(m.x - m.x_t, m.y - m.y_t)[ok]
+    eth = (m.theta - m.theta_t)[ok]
+    return float(np.sqrt(np.mean(e**2))), float(np.degrees(np.sqrt(np.mean(eth**2)))), ok
+
+
+def _check(series, truth, rig):
+    pos_rms, th_rms, ok = _compare(series, truth)
+    assert ok.mean() > 0.95
+    assert pos_rms < 0.002, f"position RMS {pos_rms * 1000:.2f} mm"
+    assert th_rms < 0.3, f"theta RMS {th_rms:.3f} deg"
+    for key in ("stop_frame_translation", "stop_frame_rotation"):
+        assert abs(series.meta[key] - truth.meta[key]) <= 2, key
+    H = float(truth.data["camera_height_m"].iloc[0])
+    h = rig.rock_height_m
+    k_true = (H - h) / H
+    assert abs(series.meta["parallax_factor"] - k_true) / k_true < 0.01
+    assert abs(series.meta["camera_height_m"] - H) < 4 * series.meta["camera_height_err_m"] + 0.02
+    # the reported sigma is the right size: actual errors within a few sigmas
+    assert 0.2 < pos_rms / series.data["sigma_xy"][ok].median() < 5
+
+
+def test_track_rendered_ladder_shot(ladder_video, ladder_tracked):
+    video, truth, rig = ladder_video
+    _check(ladder_tracked, truth, rig)
+    meta = ladder_tracked.meta
+    for key in ("fps", "start_frame", "n_frames", "t_stop_translation", "t_stop_rotation",
+                "camera_height_m", "grid_spacing_px", "frames_lost", "warnings", "version"):
+        assert key in meta
+    assert len(ladder_tracked.data) == len(truth.data)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("motion,seed", [("handheld", 1), ("ladder", 2), ("handheld", 3)])
+def test_track_rendered_shots(tmp_path, motion, seed):
+    from curltrack.track import track_video
+
+    video, truth, rig = _render(tmp_path, motion, seed, 0.8)
+    _check(track_video(video, rig), truth, rig)
+
+
+def test_cli_track_excluded_frames_and_wrong_colours(ladder_video, tmp_path):
+    video, truth, rig = ladder_video
+    out = tmp_path / "shot.csv"
+    rig_path = tmp_path / "rig.toml"
+    rig_path.write_text(rig.to_toml())
+    cmd = [sys.executable, "-m", "curltrack", "track", str(video), "--rig", str(rig_path),
+           "-o", str(out), "--exclude-frames", "5,9-10", "--end-frame", "40"]
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    data = pd.read_csv(out)
+    assert list(data["frame"]) == list(range(41))
+    assert (data.loc[data["frame"].isin([5, 9, 10]), "ok"] == 0).all()
+    assert data.loc[data["frame"].isin([5, 9, 10]), "x"].isna().all()
+    # markers of colours that are not in the video: one line, exit 1, no output
+    wrong = type(rig)(markers=(Marker("#20c040", 0.08, 0.0), Marker("#e020c0", -0.08, 0.0)))
+    rig_path.write_text(wrong.to_toml())
+    out2 = tmp_path / "bad.csv"
+    res = subprocess.run(cmd[:-6] + ["-o", str(out2)], capture_output=True, text=True)
+    assert res.returncode == 1
+    assert "no markers" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert not out2.exists()
+
+
+def test_no_markers_raises_tracking_error(ladder_video):
+    from curltrack.track import track_video
+
+    video, _, rig = ladder_video
+    wrong = type(rig)(markers=(Marker("#20c040", 0.08, 0.0), Marker("#e020c0", -0.08, 0.0)))
+    with pytest.raises(TrackingError, match="no markers"):
+        track_video(video, wrong, end_frame=20)
