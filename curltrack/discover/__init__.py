@@ -34,7 +34,8 @@ from . import scoring
 from .candidates import build_candidates
 from .model import JointModel
 from .residuals import structure_tests
-from .search import folds_shot, folds_time, heldout, score_candidate, segments_of
+from .search import (NONLINEAR_MARGIN, folds_shot, folds_time, heldout, refine_candidate,
+                     score_candidate, segments_of)
 from .shots import shot_from_series
 
 __all__ = ["discover", "write_report"]
@@ -99,15 +100,26 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     cands = build_candidates(shots, baseline)
     if effects:
         cands = [c for c in cands if c.name in set(effects)]
-    scores = []
-    for cand in cands:
-        sc = score_candidate(base, fit0, cand, seg_slices, rng, n_boot=n_boot, name=names)
+    scores = [score_candidate(base, fit0, c, seg_slices, rng, n_boot=n_boot) for c in cands]
+    # nonlinear refits, most promising first; a candidate whose linear gain is below
+    # half the best refitted delta-BIC cannot win and keeps its linear score
+    best = -np.inf
+    by_name = {c.name: c for c in cands}
+    for sc in sorted(scores, key=lambda s: -s.delta_bic_linear):
+        if sc._refine is None:
+            continue
+        floor = max(sc.threshold["threshold"], 0.0) - NONLINEAR_MARGIN
+        if sc.delta_bic_linear < floor or sc.delta_bic_linear < 0.5 * best:
+            if sc.delta_bic_linear >= floor:
+                sc.note += "; not refitted (linear gain far below the best candidate's)"
+            continue
+        refine_candidate(sc, base, fit0, name=names)
         if sc.fit is not None:
-            fixed = [p.name for p in cand.location]
+            best = max(best, sc.delta_bic)
+            fixed = [p.name for p in by_name[sc.name].location]
             sc.heldout = {"time": heldout(sc.fit, f_time, base, fixed)}
             if f_shot is not None:
                 sc.heldout["shot"] = heldout(sc.fit, f_shot, base, fixed)
-        scores.append(sc)
 
     from .report import build_report
 

@@ -50,6 +50,7 @@ class CandidateScore:
     note: str = ""
     k: int = 0
     nfev: tuple | None = None
+    _refine: tuple | None = None
 
 
 def folds_time(model: JointModel, k: int = N_TIME_BLOCKS) -> np.ndarray:
@@ -145,10 +146,8 @@ def scan_columns(base: JointModel, fit0: FitOut, cand, locs) -> list:
 
 
 def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
-                    n_boot: int = scoring.N_BOOT, name: str = "<shots>") -> CandidateScore:
-    """Scan, calibrate, refit and cross-validate one candidate (see module docstring)."""
-    from .residuals import structure_tests
-
+                    n_boot: int = scoring.N_BOOT) -> CandidateScore:
+    """Scan and calibrate one candidate (linear); :func:`refine_candidate` refits it."""
     locs = cand.grid or [{}]
     cols = scan_columns(base, fit0, cand, locs)
     bases = scoring.effect_bases(fit0.J, cols)
@@ -165,10 +164,18 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
         score.note += "; not identifiable with these shots (degenerate with the baseline)"
         score.delta_bic = score.delta_bic_linear = -np.inf
         return score
-    if lin < max(thr["threshold"], 0.0) - NONLINEAR_MARGIN:
-        return score
+    score._refine = (cand, cols[best], loc)
+    return score
+
+
+def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
+                     name: str = "<shots>") -> CandidateScore:
+    """Nonlinear fit of baseline + candidate from the best scan location (in place)."""
+    from .residuals import structure_tests
+
+    cand, E, loc = score._refine
+    k, n = cand.k, fit0.n
     # coarse-to-fine: start the nonlinear fit at the best location with the linear sizes
-    E = cols[best]
     coef, *_ = np.linalg.lstsq(np.column_stack([fit0.J, E]), fit0.r, rcond=None)
     m = JointModel(base.shots, base.baseline, cand)
     m.values.update(fit0.values)
@@ -198,9 +205,14 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
         score.params_err["y_start_m"], score.params_err["y_end_m"] = eb, ea
     if cand.name == "pick":
         score.params["shot"] = int(loc["shot"])
-    for rel in cand.releases:
-        score.params[rel] = fit1.values[rel]
-        score.params_err[rel] = fit1.err(rel)
+    if cand.name == "velocity_dependent_friction":
+        # the contract's phi, alpha: the translational law (rotation's when not sliding)
+        ch = "y" if "phi_y" in score.params else "theta"
+        for key, src in (("phi", f"phi_{ch}"), ("alpha", f"alpha_{ch}"),
+                         ("alpha_y", "alpha_y"), ("alpha_theta", "alpha_theta")):
+            if src in fit1.values:
+                score.params[key] = fit1.values[src]
+                score.params_err[key] = fit1.err(src)
     score.structure_after = structure_tests(segments_of(m, fit1))
     return score
 
