@@ -78,7 +78,7 @@ SETUPS = [
     dict(motion="ladder"),
     dict(motion="handheld", height_m=1.6, seed=1),
     dict(motion="ladder", height_m=3.0, tilt_deg=3.0, spacing_m=0.3, seed=2),
-    dict(motion="ladder", height_m=1.5, spacing_m=0.1, k1=-0.15, seed=3),
+    dict(motion="ladder", height_m=1.5, spacing_m=0.1, k1=-0.05, seed=3),
     dict(motion="handheld", occlusion=True, seed=4),
 ]
 
