@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import ParameterError
-from .physics.dynamics import MAX_DURATION_S, simulate
+from .physics.dynamics import MAX_DURATION_S
 from .physics.effects import as_effects
 from .series import Series, make_meta
 
@@ -81,23 +81,27 @@ def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
         if effects:
             raise ParameterError("effects are available with the paper model only",
                                  where="effects")
-        probe = simulate_segment(model, t=[0.0])
-        run = lambda t: simulate_segment(model, t=t)  # noqa: E731
+        full = simulate_segment(model)  # 30 fps until the stop; re-sampled below
+        stops = (full.t_stop_translation, full.t_stop_rotation)
+        sample = lambda t: simulate_segment(model, t=t)  # noqa: E731
         kind = "segment"
     else:
-        probe = simulate(model, effects, t=[0.0])
-        run = lambda t: simulate(model, effects, t=t)  # noqa: E731
+        from .physics.dynamics import evaluate, solve
+
+        segments, *stops = solve(model, effects)
+        sample = lambda t: evaluate(segments, t)  # noqa: E731
         kind = "paper"
-    end = max(probe.t_stop_translation, probe.t_stop_rotation)
+    end = max(stops)
     if not math.isfinite(end) or end > MAX_DURATION_S:
         raise ParameterError(f"the rock does not stop within {MAX_DURATION_S:.0f} s "
                              f"(friction too small, or a slope it cannot hold)",
                              where="model")
     n = int(math.floor((end + tail_s) * fps + 1e-9)) + 1
     t = np.arange(n) / fps
-    traj = run(t)
+    traj = sample(t)
+    traj = traj if isinstance(traj, dict) else traj.__dict__
     rng = np.random.default_rng(seed)
-    x, y, theta = traj.x.copy(), traj.y.copy(), traj.theta.copy()
+    x, y, theta = (np.array(traj[k], dtype=float) for k in ("x", "y", "theta"))
     if noise_m > 0:
         x += rng.normal(0.0, noise_m, n)
         y += rng.normal(0.0, noise_m, n)
@@ -111,10 +115,10 @@ def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
         data["sigma_theta"] = noise_rad
     meta = make_meta(
         fps, n,
-        t_stop_translation=float(traj.t_stop_translation),
-        t_stop_rotation=float(traj.t_stop_rotation),
-        stop_frame_translation=stop_frame(t, traj.t_stop_translation),
-        stop_frame_rotation=stop_frame(t, traj.t_stop_rotation),
+        t_stop_translation=float(stops[0]),
+        t_stop_rotation=float(stops[1]),
+        stop_frame_translation=stop_frame(t, stops[0]),
+        stop_frame_rotation=stop_frame(t, stops[1]),
         simulation={"model": kind, "params": model.to_dict(),
                     "effects": [e.to_dict() for e in effects],
                     "noise_m": noise_m, "noise_rad": noise_rad, "seed": seed,

@@ -6,7 +6,8 @@ in these variables the friction terms are constants (dw/dt = -(1 - phi_y) alpha_
 plus the slope term, dq/dt = -(1 - phi_theta) k_theta f(y)), so the right-hand side stays
 bounded up to the stop although mu = alpha u^phi diverges there for phi < 0, and the stop
 is the root of a smooth function (located by the event finder, not frame-quantised).
-Patch edges are events too: the step function in y is never stepped over.  After a stop
+Patch edges are terminal events and the friction factor is held constant within a piece:
+the step function in y is never seen by an RK stage on the wrong side of an edge.  After a stop
 the motion stays stopped (static friction holds the rock on a slope).
 """
 
@@ -41,24 +42,26 @@ class OdeSegment:
         self.pieces = []  # (ta, tb, dense solution or constant state)
         self._solve(t0, z0)
 
-    def _rhs(self, moving, spinning):
+    def _rhs(self, moving, spinning, f):
+        """Right-hand side for one piece; ``f`` is the friction factor of the patch the
+        piece runs in (constant: pieces end at patch edges, so no stage of an RK step ever
+        sees the other side of an edge)."""
         m, ax, ay = self.model, *self.terms.slope_accel
         py, pt, k_y, k_t = self.py, self.pt, self.k_y, self.k_t
-        late, patches, v_c, a_T, sgn = self.terms.late_curl, self.terms.patches, m.v_taper, m.a_T, self.sgn
+        late, v_c, a_T, sgn = self.terms.late_curl, m.v_taper, m.a_T, self.sgn
 
         e_y, e_t = 1.0 / (1.0 - py), 1.0 / (1.0 - pt)
         c_y, c_t = (1.0 - py) * k_y, (1.0 - pt) * k_t
 
         def rhs(t, z):  # scalar math on purpose: called ~1000 times per shot
             x, y, w, psi, th, q = z.tolist()
-            f = float(patch_factor(y, patches)) if patches else 1.0
             d = [0.0] * 6
             if moving:
                 v = w ** e_y if w > 0 else 0.0
                 c, s = math.cos(psi), math.sin(psi)
                 a_par = -ax * s + ay * c          # slope along v_hat = (-sin, cos)
                 a_left = -ax * c - ay * s         # slope along the left normal
-                a_perp = a_left + (sgn * a_T * transverse_gain(v, late, v_c) if spinning else 0.0)
+                a_perp = a_left + (sgn * a_T * transverse_gain(v, late) if spinning else 0.0)
                 d[0], d[1] = -v * s, v * c
                 d[2] = -c_y * f + (1.0 - py) * max(v, _V_FLOOR) ** (-py) * a_par
                 d[3] = heading_rate(a_perp, v, v_c)
@@ -85,7 +88,11 @@ class OdeSegment:
                 events.append(lambda _t, zz: zz[5]); kinds.append("rotation")
             for ev in events:
                 ev.terminal = True
-            sol = solve_ivp(self._rhs(moving, spinning), (t, self.t1), z, method="DOP853",
+            f = 1.0
+            if self.terms.patches:  # the side of the edge the rock is heading into
+                heading_y = math.cos(z[3]) if moving else 0.0
+                f = float(patch_factor(z[1] + 1e-9 * heading_y, self.terms.patches))
+            sol = solve_ivp(self._rhs(moving, spinning, f), (t, self.t1), z, method="DOP853",
                             rtol=RTOL, atol=ATOL, events=events, dense_output=True)
             if sol.status == -1:
                 from ..errors import ParameterError
@@ -105,6 +112,7 @@ class OdeSegment:
                     self.t_stop_rotation = t_new
                 else:
                     skip_edge = kind
+                    z_new[1] = kind   # exactly on the edge
             t, z = t_new, z_new
         self.pieces.append((t, math.inf, z, z[2] > 0, z[5] > 0))
         self.z_end = z

@@ -60,8 +60,7 @@ class ClosedSegment:
 
     def _turn_rate(self, t, spinning):
         v = self.speed(t)
-        a_perp = np.sign(self.w0) * spinning * self.model.a_T * transverse_gain(
-            v, self.late, self.model.v_taper)
+        a_perp = np.sign(self.w0) * spinning * self.model.a_T * transverse_gain(v, self.late)
         return heading_rate(a_perp, v, self.model.v_taper)
 
     # --- quadrature of heading and position ---------------------------------------------

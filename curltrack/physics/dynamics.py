@@ -195,7 +195,8 @@ def simulate(model: ShotModel, effects=(), t=None, method: str = "auto") -> Traj
     Returns
     -------
     Trajectory
-        x, y, vx, vy, theta, omega at ``t`` and the stop times.
+        x, y, vx, vy, theta, omega at ``t`` and the stop times (``inf`` for a motion
+        still going at max(t): nothing is integrated beyond the requested times).
 
     Raises
     ------
@@ -211,7 +212,7 @@ def simulate(model: ShotModel, effects=(), t=None, method: str = "auto") -> Traj
     horizon = None
     if t is not None:
         t = _check_times(t)
-        horizon = max(MAX_DURATION_S, float(t.max()) if t.size else 0.0)
+        horizon = float(t.max()) if t.size else 0.0
     segments, t_tr, t_rot = solve(model, effects, horizon, method)
     if t is None:
         end = max(t_tr, t_rot)

@@ -15,9 +15,10 @@ direction of travel, SI units).
 ``friction_patch`` (``y_start_m``, ``y_end_m``, ``factor``)
     Both friction coefficients (alpha_y and alpha_theta) are multiplied by ``factor`` while
     the rock centre is in y_start_m <= y < y_end_m (swept, frosted or worn ice).
-``late_curl`` (``k``, ``v_ref_m_per_s`` = 1.0)
+``late_curl`` (``k``, ``v_ref_m_per_s`` = 1.0; optional ``v_min_m_per_s`` = 0.05)
     The transverse acceleration grows as the rock slows: a_T (v_eff / v_ref)^(-k) with
-    v_eff = sqrt(v^2 + v_c^2), v_c the model's taper speed, so it stays finite as v -> 0.
+    v_eff = sqrt(v^2 + v_min^2), so the gain is (v/v_ref)^(-k) for v >> v_min and stays
+    below (v_min/v_ref)^(-k) (20 for k = 1) as v -> 0; the model's taper then fades it.
 ``pick`` (``t_s``, ``dvx_m_per_s`` = 0, ``dvy_m_per_s`` = 0, ``domega_rad_per_s`` = 0)
     An impulsive change of velocity and spin at time t_s (debris under the running band).
     It is applied whatever the state (a pick after the stop sets a resting rock moving).
@@ -42,7 +43,7 @@ EFFECTS: dict[str, dict[str, object]] = {
                                     "phi_theta": None, "alpha_theta": None},
     "ice_slope": {"slope_x_mm_per_m": 0.0, "slope_y_mm_per_m": 0.0},
     "friction_patch": {"y_start_m": _REQUIRED, "y_end_m": _REQUIRED, "factor": _REQUIRED},
-    "late_curl": {"k": _REQUIRED, "v_ref_m_per_s": 1.0},
+    "late_curl": {"k": _REQUIRED, "v_ref_m_per_s": 1.0, "v_min_m_per_s": 0.05},
     "pick": {"t_s": _REQUIRED, "dvx_m_per_s": 0.0, "dvy_m_per_s": 0.0,
              "domega_rad_per_s": 0.0},
 }
@@ -137,11 +138,12 @@ def _check_ranges(name: str, p: dict, where: str) -> None:
     elif name == "friction_patch":
         if p["factor"] <= 0.0:
             bad(f"factor must be > 0 (got {p['factor']})")
-        if not p["y_end_m"] > p["y_start_m"]:
-            bad(f"y_end_m ({p['y_end_m']}) must be greater than y_start_m ({p['y_start_m']})")
+        if p["y_end_m"] < p["y_start_m"]:   # equal: an empty patch (no effect), fine in fits
+            bad(f"y_end_m ({p['y_end_m']}) must not be less than y_start_m ({p['y_start_m']})")
     elif name == "late_curl":
-        if p["v_ref_m_per_s"] <= 0.0:
-            bad(f"v_ref_m_per_s must be > 0 (got {p['v_ref_m_per_s']})")
+        for key in ("v_ref_m_per_s", "v_min_m_per_s"):
+            if p[key] <= 0.0:
+                bad(f"{key} must be > 0 (got {p[key]})")
         if abs(p["k"]) > 5.0:
             bad(f"k = {p['k']} is outside [-5, 5]")
     elif name == "pick":
@@ -168,7 +170,7 @@ class Terms(NamedTuple):
 
     slope_accel: tuple[float, float]        # (a_x, a_y) in m/s^2
     patches: tuple[tuple[float, float, float], ...]   # (y_start, y_end, factor)
-    late_curl: tuple[float, float] | None   # (k, v_ref)
+    late_curl: tuple[float, float, float] | None   # (k, v_ref, v_min)
     picks: tuple[tuple[float, float, float, float], ...]  # (t, dvx, dvy, domega), sorted
     overrides: dict                         # ShotModel field -> value
 
@@ -205,7 +207,7 @@ def gather(effects) -> Terms:
         elif e.name == "friction_patch":
             patches.append((p["y_start_m"], p["y_end_m"], p["factor"]))
         elif e.name == "late_curl":
-            late = (p["k"], p["v_ref_m_per_s"])
+            late = (p["k"], p["v_ref_m_per_s"], p["v_min_m_per_s"])
         elif e.name == "pick":
             picks.append((p["t_s"], p["dvx_m_per_s"], p["dvy_m_per_s"], p["domega_rad_per_s"]))
         elif e.name == "velocity_dependent_friction":
@@ -226,16 +228,16 @@ def patch_factor(y, patches) -> np.ndarray | float:
     return f if f.ndim else float(f)
 
 
-def transverse_gain(v, late_curl, v_c: float):
+def transverse_gain(v, late_curl):
     """Multiplier of a_T at speed ``v`` (m/s), before the low-speed taper.
 
-    1 without ``late_curl``; with it ((v^2 + v_c^2) / v_ref^2)^(-k/2), i.e.
-    (v/v_ref)^(-k) for v >> v_c, bounded by (v_c/v_ref)^(-k) as v -> 0.
+    1 without ``late_curl``; with it ((v^2 + v_min^2) / v_ref^2)^(-k/2), i.e.
+    (v/v_ref)^(-k) for v >> v_min, bounded by (v_min/v_ref)^(-k) as v -> 0.
     """
     if late_curl is None:
         return np.ones_like(v) if isinstance(v, np.ndarray) else 1.0
-    k, v_ref = late_curl
-    return ((v * v * 1.0 + v_c * v_c) / (v_ref * v_ref)) ** (-0.5 * k)
+    k, v_ref, v_min = late_curl
+    return ((v * v * 1.0 + v_min * v_min) / (v_ref * v_ref)) ** (-0.5 * k)
 
 
 def taper(v, v_c: float):
