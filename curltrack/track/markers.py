@@ -113,13 +113,15 @@ class MarkerDetector:
         """One boolean mask per marker colour class (nearest-prototype rule)."""
         class_lab = np.array([self.colors_lab[self.class_of == c].mean(axis=0)
                               for c in range(self.n_classes)])
-        protos = np.vstack([class_lab, self.thread_lab, bg_lab[None]])
-        w = _weigh(lab)
-        d = np.stack([np.sum((w - _weigh(p)) ** 2, axis=-1) for p in protos], axis=0)
+        protos = _weigh(np.vstack([class_lab, self.thread_lab, bg_lab[None]]))
+        w = _weigh(lab).reshape(-1, 3)
+        # squared distances to every prototype, |w|^2 - 2 w.p + |p|^2, as one product
+        d = ((w * w).sum(axis=1)[:, None] - 2.0 * (w @ protos.T)
+             + (protos * protos).sum(axis=1)[None]).T.reshape(len(protos), *lab.shape[:2])
         nearest = np.argmin(d, axis=0)
         masks = []
         for c in range(self.n_classes):
-            half_to_bg = 0.25 * float(np.sum((_weigh(class_lab[c]) - _weigh(bg_lab)) ** 2))
+            half_to_bg = 0.25 * float(np.sum((protos[c] - protos[-1]) ** 2))
             masks.append((nearest == c) & (d[c] < half_to_bg))
         return masks
 
@@ -156,7 +158,7 @@ class MarkerDetector:
             return empty
         patch = image_bgr[y0:y1, x0:x1]
         lab = cv2.cvtColor(patch, cv2.COLOR_BGR2Lab).astype(np.float32)
-        bg_lab = np.median(lab.reshape(-1, 3), axis=0)
+        bg_lab = np.median(lab.reshape(-1, 3)[::3], axis=0)
         masks = self._class_masks(lab, bg_lab)
         cands = []  # per class: list of (centroid_xy, area) in full-image px
         for c, mask in enumerate(masks):

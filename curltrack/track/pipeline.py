@@ -88,10 +88,16 @@ class _Follower:
                 return None
             mf = self.det.detect(image)
         else:
-            c, r = self.rock_px(frame)
-            m = 1.3 * r + 20
-            mf = self.det.detect(image, predicted=pred,
-                                 roi=(c[0] - m, c[1] - m, c[0] + m + 1, c[1] + m + 1))
+            # Look only around the predicted markers (the gate plus the refine window).
+            r_mk = np.sqrt((self.det.area_px or 50.0) / np.pi)
+            m = 6.0 * r_mk + 16.0
+            lo, hi = pred.min(axis=0) - m, pred.max(axis=0) + m + 1
+            mf = self.det.detect(image, predicted=pred, roi=(lo[0], lo[1], hi[0], hi[1]))
+            if not mf.found.all():  # a jolt of the camera: retry on the whole rock
+                c, r = self.rock_px(frame)
+                m = 1.3 * r + 20
+                mf = self.det.detect(image, predicted=pred, gate_px=r,
+                                     roi=(c[0] - m, c[1] - m, c[0] + m + 1, c[1] + m + 1))
         if mf.found.all():
             self.hist = (self.hist + [(frame, mf.xy_px.copy())])[-2:]
             self.lost = 0
