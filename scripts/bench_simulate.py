@@ -1,5 +1,6 @@
 #!/usr/bin/env python
-"""Benchmark of the forward model (targets: < 50 ms per draw; < 20 ms inside fits).
+"""Benchmark of the forward model per solver path and effect (targets: < 50 ms per draw;
+< 20 ms inside fits).  scripts/bench.py measures the baseline draw among everything else.
 
 Times one typical draw (v0 = 2 m/s, omega0 = 1.5 rad/s, ~26 s, ~0.9 m curl) sampled at
 30 fps, for each solver path and with each effect, as the median of repeated runs in one
@@ -9,14 +10,17 @@ process (first call excluded: imports).  Usage: python scripts/bench_simulate.py
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
+import sys
+from pathlib import Path
 
 import numpy as np
 
 from curltrack.physics import Effect, ShotModel, simulate
 from curltrack.physics.segment import SegmentModel, simulate_segment
 from curltrack.simulate import simulate_series
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench import _median_ms as _time  # noqa: E402  (scripts/bench.py: the house timer)
 
 CASES = {
     "paper, baseline (closed forms + quadrature)": ((), "auto"),
@@ -27,16 +31,6 @@ CASES = {
     "paper + friction_patch (piecewise closed)": (
         (Effect("friction_patch", {"y_start_m": 10, "y_end_m": 15, "factor": 1.3}),), "auto"),
 }
-
-
-def _time(fn, n):
-    fn()
-    runs = []
-    for _ in range(n):
-        t0 = time.perf_counter()
-        fn()
-        runs.append(time.perf_counter() - t0)
-    return statistics.median(runs) * 1e3
 
 
 def main(argv=None) -> int:

@@ -105,6 +105,13 @@ class ClosedSegment:
         self.x_end, self.y_end = pos[-1]
         self.psi_end = psi[-1]
 
+    def y_in_interval(self, j: int, t: float) -> float:
+        """y (m) at time ``t`` inside node interval ``j`` (the same interpolant as evaluate)."""
+        tn = self.nodes
+        h = float(tn[j + 1] - tn[j])
+        return float(_hermite(h, (t - tn[j]) / h, self.pos[j, 1], self.pos[j + 1, 1],
+                              self.vel[j, 1], self.vel[j + 1, 1]))
+
     def evaluate(self, t):
         """State at times ``t`` (t0 <= t <= t1): dict of x, y, vx, vy, theta, omega."""
         t = np.asarray(t, dtype=float)

@@ -145,8 +145,8 @@ def _first_crossing(seg, edges) -> tuple[float, float | None]:
         if d[j + 1] == 0:
             t_e = tn[j + 1]
         else:
-            fy = lambda tt: seg.evaluate(np.array([tt]))["y"][0] - e  # noqa: E731
-            t_e = brentq(fy, tn[j], tn[j + 1], xtol=1e-13, rtol=1e-15)
+            t_e = brentq(lambda tt: seg.y_in_interval(j, tt) - e, tn[j], tn[j + 1],
+                         xtol=1e-13, rtol=1e-15)
         if t_e < best:
             best, where = t_e, e
     return best, where

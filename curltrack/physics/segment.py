@@ -56,7 +56,7 @@ from scipy.integrate import solve_ivp
 
 from ..errors import ParameterError
 from ..rig import G
-from .shot import ALPHA_Y_DRAW, PHI_Y_DRAW, Trajectory
+from .shot import ALPHA_Y_DRAW, PHI_Y_DRAW, Trajectory, _ModelParams
 
 U_EPS = 1e-4      # m/s, friction regularisation
 V_STOP = 1e-3     # m/s, below this a motion is taken as stopped
@@ -65,7 +65,7 @@ HORIZON_S = 600.0
 
 
 @dataclass(frozen=True)
-class SegmentModel:
+class SegmentModel(_ModelParams):
     """A shot for the segment-level model.
 
     Parameters
@@ -98,17 +98,9 @@ class SegmentModel:
     n_segments: int = 64
 
     def __post_init__(self):
-        for f in fields(self):
-            if f.name == "friction_direction":
-                continue
-            value = getattr(self, f.name)
-            try:
-                value = float(value)
-            except (TypeError, ValueError):
-                raise ParameterError(f"expected a number, got {value!r}", where=f.name) from None
-            if not math.isfinite(value):
-                raise ParameterError(f"expected a finite number, got {value!r}", where=f.name)
-            object.__setattr__(self, f.name, int(value) if f.name == "n_segments" else value)
+        self._coerce_numbers(skip=("friction_direction",))
+        if self.n_segments == int(self.n_segments):
+            object.__setattr__(self, "n_segments", int(self.n_segments))
         if self.friction_direction not in ("film", "ice"):
             raise ParameterError(f"expected 'film' or 'ice', got {self.friction_direction!r}",
                                  where="friction_direction")
@@ -117,18 +109,11 @@ class SegmentModel:
                                                      "in [0, 1)"),
                   ("asymmetry", 0 <= self.asymmetry < 1, "in [0, 1)"),
                   ("R", self.R > 0, "> 0"), ("r", self.r > 0, "> 0"),
-                  ("n_segments", self.n_segments >= 8 and self.n_segments % 2 == 0,
-                   "even and >= 8")]
+                  ("n_segments", isinstance(self.n_segments, int) and self.n_segments >= 8
+                   and self.n_segments % 2 == 0, "an even integer >= 8")]
         for name, ok, what in checks:
             if not ok:
                 raise ParameterError(f"must be {what} (got {getattr(self, name)})", where=name)
-
-    @classmethod
-    def from_rig(cls, rig, **kw) -> "SegmentModel":
-        """A model with R and r taken from a :class:`curltrack.rig.Rig`."""
-        kw.setdefault("R", rig.inertia_radius_m)
-        kw.setdefault("r", rig.band_radius_m)
-        return cls(**kw)
 
     def to_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}

@@ -44,8 +44,33 @@ A_T_DRAW = 5.0e-3
 V_TAPER = 0.01
 
 
+class _ModelParams:
+    """Shared by the shot models: number coercion/validation and radii from a rig."""
+
+    def _coerce_numbers(self, skip=(), optional=()):
+        """Every field (but ``skip``) to a finite float; None allowed for ``optional``."""
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in skip or (value is None and f.name in optional):
+                continue
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ParameterError(f"expected a number, got {value!r}", where=f.name) from None
+            if not math.isfinite(value):
+                raise ParameterError(f"expected a finite number, got {value!r}", where=f.name)
+            object.__setattr__(self, f.name, value)
+
+    @classmethod
+    def from_rig(cls, rig, **kw):
+        """A model with R and r taken from a :class:`curltrack.rig.Rig`."""
+        kw.setdefault("R", rig.inertia_radius_m)
+        kw.setdefault("r", rig.band_radius_m)
+        return cls(**kw)
+
+
 @dataclass(frozen=True)
-class ShotModel:
+class ShotModel(_ModelParams):
     """Initial conditions and friction laws of one shot (the paper's model).
 
     Parameters
@@ -89,17 +114,7 @@ class ShotModel:
     v_taper: float = V_TAPER
 
     def __post_init__(self):
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if value is None and f.name == "alpha_theta":
-                continue
-            try:
-                value = float(value)
-            except (TypeError, ValueError):
-                raise ParameterError(f"expected a number, got {value!r}", where=f.name) from None
-            if not math.isfinite(value):
-                raise ParameterError(f"expected a finite number, got {value!r}", where=f.name)
-            object.__setattr__(self, f.name, value)
+        self._coerce_numbers(optional=("alpha_theta",))
         if self.v0 < 0:
             raise ParameterError(f"must be >= 0 (got {self.v0}); the shot moves along +y",
                                  where="v0")
@@ -111,13 +126,6 @@ class ShotModel:
             value = getattr(self, name)
             if value is not None and value <= 0.0:
                 raise ParameterError(f"must be > 0 (got {value})", where=name)
-
-    @classmethod
-    def from_rig(cls, rig, **kw) -> "ShotModel":
-        """A model with R and r taken from a :class:`curltrack.rig.Rig`."""
-        kw.setdefault("R", rig.inertia_radius_m)
-        kw.setdefault("r", rig.band_radius_m)
-        return cls(**kw)
 
     @property
     def lambda_y(self) -> float:
