@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from enum import Enum
 from pathlib import Path
 from typing import List, Optional
 
@@ -10,13 +11,18 @@ import typer
 from ._app import app, guarded
 
 
+class Baseline(str, Enum):
+    paper = "paper"
+    dry = "dry"
+
+
 @app.command()
 @guarded
 def discover(
     shots: List[Path] = typer.Argument(..., help="SHOT.csv/.parquet files (one session)."),
     output: Path = typer.Option(..., "-o", "--output", help="REPORT.json to write."),
-    baseline: str = typer.Option("paper", "--baseline",
-                                 help="paper (mu = alpha v^phi) or dry (phi = 0)."),
+    baseline: Baseline = typer.Option(Baseline.paper, "--baseline",
+                                      help="paper (mu = alpha v^phi) or dry (phi = 0)."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Figure (PNG) to write."),
     seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
 ):
@@ -24,9 +30,6 @@ def discover(
     model and its gain (delta-BIC, held-out error, residual tests)."""
     from ..discover import discover as run, write_report
 
-    if baseline not in ("paper", "dry"):
-        raise typer.BadParameter(f"expected 'paper' or 'dry', got {baseline!r}",
-                                 param_hint="--baseline")
-    report = run([str(p) for p in shots], baseline=baseline, seed=seed)
+    report = run([str(p) for p in shots], baseline=baseline.value, seed=seed)
     write_report(report, output, plot)
     typer.echo(f"verdict: {report['verdict']}  ({output})")

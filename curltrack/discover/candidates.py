@@ -50,6 +50,10 @@ class Candidate:
         Baseline parameters the candidate frees instead of adding a term.
     note : str
         What is (not) identifiable with the shots given.
+    subsets : list of tuple of int, optional
+        Sub-models: which size parameters may be free together (indices into ``size``);
+        the scan picks the best by delta-BIC, and the bootstrap calibrates that choice.
+        Default: all of them at once.
     """
 
     name: str
@@ -58,6 +62,7 @@ class Candidate:
     grid: list = field(default_factory=lambda: [{}])
     releases: list = field(default_factory=list)
     note: str = ""
+    subsets: list | None = None
 
     @property
     def params(self) -> list:
@@ -168,7 +173,13 @@ def build_candidates(shots, baseline: str) -> list:
             Param("domega_rad_per_s", 0.0, -10.0, 10.0, "rad/s")]
     if not translating:
         size = size[2:]
+    import itertools
+
+    subsets = [c for r in range(1, len(size) + 1)
+               for c in itertools.combinations(range(len(size)), r)]
     out.append(Candidate("pick", size, location=[Param("t_s", 0.0, 0.0, 1e9, "s")],
-                         grid=grid, note="an impulsive change of velocity and spin at t_s "
-                                         "(time scanned on a grid, then refined)"))
+                         grid=grid, subsets=subsets,
+                         note="an impulsive change of velocity and/or spin at t_s (time "
+                              "scanned on a grid, then refined; the components kept are "
+                              "chosen by delta-BIC)"))
     return out

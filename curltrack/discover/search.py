@@ -150,21 +150,29 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
     """Scan and calibrate one candidate (linear); :func:`refine_candidate` refits it."""
     locs = cand.grid or [{}]
     cols = scan_columns(base, fit0, cand, locs)
-    bases = scoring.effect_bases(fit0.J, cols)
-    gains = scoring.scan_gain(bases, fit0.r)
-    best = int(np.argmax(gains))
-    k = cand.k
+    subsets = cand.subsets or [tuple(range(len(cand.size)))]
     n = fit0.n
-    lin = float(gains[best] - k * np.log(n))
-    thr = scoring.bootstrap_threshold(bases, fit0.r, segments_slices, k, n, rng,
+    keys, sub_cols, ks = [], [], []
+    for i, c in enumerate(cols):
+        for sub in subsets:
+            keys.append((i, sub))
+            sub_cols.append(c[:, list(sub)])
+            ks.append(len(cand.location) + len(sub))
+    bases = scoring.effect_bases(fit0.J, sub_cols)
+    stats = scoring.scan_gain(bases, fit0.r) - np.array(ks) * np.log(n)
+    best = int(np.argmax(stats))
+    i_loc, sub = keys[best]
+    k = ks[best]
+    lin = float(stats[best])
+    thr = scoring.bootstrap_threshold(bases, fit0.r, segments_slices, ks, n, rng,
                                       n_boot=n_boot)
-    loc = dict(locs[best])
+    loc = dict(locs[i_loc])
     score = CandidateScore(cand.name, lin, lin, thr, None, loc, note=cand.note, k=k)
     if sum(b.shape[1] for b in bases) == 0:
         score.note += "; not identifiable with these shots (degenerate with the baseline)"
         score.delta_bic = score.delta_bic_linear = -np.inf
         return score
-    score._refine = (cand, cols[best], loc)
+    score._refine = (cand, cols[i_loc][:, list(sub)], loc, sub)
     return score
 
 
@@ -173,8 +181,8 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
     """Nonlinear fit of baseline + candidate from the best scan location (in place)."""
     from .residuals import structure_tests
 
-    cand, E, loc = score._refine
-    k, n = cand.k, fit0.n
+    cand, E, loc, sub = score._refine
+    k, n = score.k, fit0.n
     # coarse-to-fine: start the nonlinear fit at the best location with the linear sizes
     coef, *_ = np.linalg.lstsq(np.column_stack([fit0.J, E]), fit0.r, rcond=None)
     m = JointModel(base.shots, base.baseline, cand)
@@ -182,9 +190,12 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
     m.cand_fixed = {k2: v for k2, v in loc.items() if k2 == "shot"}
     for p in cand.location:
         m.values[p.name] = loc[p.name]
-    for p, c in zip(cand.size, coef[fit0.J.shape[1]:]):
-        lo, hi = p.lower, p.upper
-        m.values[p.name] = float(np.clip(p.null + c, lo + 1e-6, hi - 1e-6))
+    for j, c in zip(sub, coef[fit0.J.shape[1]:]):
+        p = cand.size[j]
+        m.values[p.name] = float(np.clip(p.null + c, p.lower + 1e-6, p.upper - 1e-6))
+    # size parameters outside the chosen sub-model stay at their null values
+    dropped = [p.name for j, p in enumerate(cand.size) if j not in sub]
+    m.free = [f for f in m.free if f not in dropped]
     if cand.name == "pick":
         t_end = float(base.shots[loc["shot"]].t.max())
         m.bounds["t_s"] = (0.0, t_end)
