@@ -154,6 +154,13 @@ def _minimize(resid, params, name, path):
     if not res.success:
         raise FitError(f"{name} fit did not converge ({res.message})", path=path)
     if not res.errorbars or res.covar is None:
+        # MINPACK can stop at an exact optimum without a covariance (noise-free data);
+        # a trust-region pass from there computes it from the Jacobian's SVD.
+        try:
+            res = lmfit.minimize(resid, res.params, method="least_squares")
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+            pass
+    if not res.errorbars or res.covar is None:
         raise FitError(f"{name} fit converged but its uncertainties could not be estimated "
                        "(parameters degenerate or at a bound)", path=path)
     return res
@@ -446,7 +453,10 @@ def _weights(d: pd.DataFrame, col: str, t, coords, t_stop) -> float:
         s = float(np.nanmedian(d[col].to_numpy(float)))
         if s > 0:
             return s
-    return float(np.nanmax([noise_level(t, q, t_stop) for q in coords]))
+    est = float(np.nanmax([noise_level(t, q, t_stop) for q in coords]))
+    # Noise-free (simulated) data: a floor keeps the scaled covariance computable.
+    floor = 1e-9 * max(float(np.nanmax(np.abs(q))) for q in coords) + 1e-15
+    return max(est, floor) if np.isfinite(est) else est
 
 
 def _x_stop(t, x, y, params, t_stop) -> float | None:

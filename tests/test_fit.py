@@ -22,7 +22,7 @@ def _cases(n, seed):
                    skew_deg=rng.uniform(-2.5, 2.5), seed=int(rng.integers(1 << 30)))
 
 
-@pytest.mark.parametrize("case", list(_cases(4, seed=11)))
+@pytest.mark.parametrize("case", list(_cases(10, seed=11)))
 def test_exact_recovery_without_noise(case):
     res = fit_series(closed_form_series(**case))
     v = res.values
