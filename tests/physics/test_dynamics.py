@@ -4,6 +4,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from curltrack.errors import ParameterError
 from curltrack.physics import Effect, ShotModel, simulate
@@ -214,3 +216,35 @@ def test_from_rig_takes_radii():
 
     m = ShotModel.from_rig(Rig(band_radius_m=0.06, inertia_radius_m=0.15), v0=1.0, omega0=1.0)
     assert (m.R, m.r) == (0.15, 0.06)
+
+
+_EFFECTS = {
+    "none": lambda d: (),
+    "ice_slope": lambda d: (Effect("ice_slope", {
+        "slope_x_mm_per_m": d.draw(st.floats(-60, 60)),
+        "slope_y_mm_per_m": d.draw(st.floats(-60, 60))}),),
+    "friction_patch": lambda d: (lambda a, b: (Effect("friction_patch", {
+        "y_start_m": a, "y_end_m": a + b, "factor": d.draw(st.floats(0.05, 20))}),))(
+        d.draw(st.floats(-1, 40)), d.draw(st.floats(0, 10))),
+    "late_curl": lambda d: (Effect("late_curl", {"k": d.draw(st.floats(-3, 3))}),),
+    "pick": lambda d: (Effect("pick", {
+        "t_s": d.draw(st.floats(0, 40)), "dvx_m_per_s": d.draw(st.floats(-2, 2)),
+        "dvy_m_per_s": d.draw(st.floats(-2, 2)),
+        "domega_rad_per_s": d.draw(st.floats(-10, 10))}),),
+}
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.data())
+def test_finite_output_for_any_valid_parameters(data):
+    """Over the ranges discover fits in: always finite, stops ordered, never a NaN series."""
+    kw = dict(v0=data.draw(st.floats(0, 6)), omega0=data.draw(st.floats(-60, 60)),
+              phi_y=data.draw(st.floats(-3, 0.9)), alpha_y=data.draw(st.floats(1e-3, 1.0)),
+              phi_theta=data.draw(st.floats(-3, 0.9)),
+              alpha_theta=data.draw(st.floats(1e-6, 1.0)), a_T=data.draw(st.floats(0, 0.05)))
+    effects = _EFFECTS[data.draw(st.sampled_from(sorted(_EFFECTS)))](data)
+    tr = simulate(ShotModel(**kw), effects, t=np.linspace(0, 40, 121))
+    for k in ("x", "y", "vx", "vy", "theta", "omega"):
+        assert np.isfinite(getattr(tr, k)).all(), k
+    for stop in (tr.t_stop_translation, tr.t_stop_rotation):
+        assert stop >= 0
