@@ -14,7 +14,8 @@ direction of travel, SI units).
     downhill acceleration a = -g sin(atan(slope)) per axis (m/s^2).
 ``friction_patch`` (``y_start_m``, ``y_end_m``, ``factor``)
     Both friction coefficients (alpha_y and alpha_theta) are multiplied by ``factor`` while
-    the rock centre is in y_start_m <= y < y_end_m (swept, frosted or worn ice).
+    the rock centre is in y_start_m <= y < y_end_m (swept, frosted or worn ice); equal
+    ends make an empty patch (no effect), so fits may start from one.
 ``late_curl`` (``k``, ``v_ref_m_per_s`` = 1.0; optional ``v_min_m_per_s`` = 0.05)
     The transverse acceleration grows as the rock slows: a_T (v_eff / v_ref)^(-k) with
     v_eff = sqrt(v^2 + v_min^2), so the gain is (v/v_ref)^(-k) for v >> v_min and stays

@@ -163,6 +163,14 @@ class ShotModel(_ModelParams):
                                      self.R, self.r) if self.omega0 else 0.0)
         return float(t_s), float(t_r)
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "ShotModel":
+        """Inverse of :meth:`to_dict` (derived keys ignored; a tied alpha_theta stays tied)."""
+        kw = {f.name: d[f.name] for f in fields(cls) if f.name in d}
+        if d.get("alpha_theta_tied"):
+            kw["alpha_theta"] = None
+        return cls(**kw)
+
     def to_dict(self) -> dict:
         """JSON-ready parameters (alpha_theta resolved, plus the lambdas)."""
         d = {f.name: getattr(self, f.name) for f in fields(self)}

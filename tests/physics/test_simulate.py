@@ -56,6 +56,8 @@ def test_series_round_trip(tmp_path):
     back = read_series(tmp_path / "sim.csv")
     np.testing.assert_allclose(back.data["x"], s.data["x"], rtol=1e-8, atol=1e-12)
     assert back.meta["simulation"]["effects"][0]["effect"] == "ice_slope"
+    again = ShotModel.from_dict(back.meta["simulation"]["params"])
+    assert again == ShotModel(v0=2.0, omega0=1.5)
 
 
 @pytest.mark.parametrize("kw", [dict(fps=0.0), dict(noise_m=-1.0), dict(tail_s=math.nan)])
