@@ -178,6 +178,14 @@ class MarkerDetector:
             if c_xy is None:
                 continue
             res = self._refine(image_bgr, lab, (x0, y0), c_xy, c_area, i)
+            # The classified blob can be smaller than the marker (blur, a colour model
+            # not yet adapted): then the window cut the marker; redo it at the coverage
+            # area found.
+            for _ in range(2):
+                if res is None or res[2] < 1.2 * c_area:
+                    break
+                c_xy, c_area = res[0], res[2]
+                res = self._refine(image_bgr, lab, (x0, y0), c_xy, c_area, i)
             if res is not None:
                 xy[i], sig[i], area[i], con[i] = res
         missing = [self.rig.markers[i].color for i in range(M) if not np.isfinite(xy[i, 0])]

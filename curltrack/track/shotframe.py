@@ -42,7 +42,7 @@ def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return out
 
 
-def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.5, min_points: int = 6):
+def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_points: int = 8):
     """Value and rate at t = 0 from a quadratic fit to the first ``window_s`` seconds.
 
     Parameters
@@ -64,6 +64,13 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.5, min_point
     deg = 2 if n >= 6 else (1 if n >= 2 else 0)
     A = np.vander(tt, deg + 1, increasing=True)
     coef, *_ = np.linalg.lstsq(A, qq, rcond=None)
+    if n > deg + 4:
+        # one robust pass: frames more than 3 robust sigmas off the fit are dropped
+        res = qq - A @ coef
+        mad = 1.4826 * np.median(np.abs(res - np.median(res, axis=0)), axis=0)
+        keep = np.all(np.abs(res) <= 3 * np.maximum(mad, 1e-12), axis=1)
+        if keep.sum() > deg + 2:
+            coef, *_ = np.linalg.lstsq(A[keep], qq[keep], rcond=None)
     q0 = coef[0]
     rate = coef[1] if deg >= 1 else np.zeros_like(q0)
     return q0, rate
