@@ -1,0 +1,108 @@
+"""The per-shot work of a batch: ``track`` then ``fit`` (then ``discover``), as the CLI does.
+
+The fit reads the series back from the written ``SHOT.csv``, exactly as
+``curltrack fit SHOT.csv`` does, so a batch gives the same numbers as running the
+commands one by one.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .._atomic import write_json
+from ..series import Series, read_series, write_series
+from .jobs import BatchOptions, ShotJob
+
+#: Tracking-quality figures put in every shot's record (names of the campaign columns).
+QUALITY_KEYS = ("n_frames", "n_measured", "frac_measured", "frames_lost",
+                "sigma_xy_median_m", "sigma_theta_median_rad", "quality_median",
+                "camera_height_m", "grid_spacing_px", "t_stop_translation",
+                "t_stop_rotation", "n_warnings", "warnings")
+
+
+def track_and_fit(job: ShotJob, rig, shot_dir, options: BatchOptions) -> dict:
+    """Track ``job.video``, fit it (and optionally discover), write the per-shot files.
+
+    Writes ``SHOT.csv`` + ``SHOT.json``, ``FIT.json`` and with ``options.discover``
+    ``REPORT.json``, with ``options.plots`` ``FIT.png`` in ``shot_dir``.
+
+    Returns
+    -------
+    dict
+        ``{"quality": {...}, "fit": FIT.json dict, "discovery": {...} or None}``.
+
+    Raises
+    ------
+    CurltrackError
+        From tracking or fitting; the caller records it.
+    """
+    from ..fit import fit_series
+    from ..track import track_video
+
+    shot_dir = Path(shot_dir)
+    series = track_video(job.video, rig, start_frame=job.start_frame, end_frame=job.end_frame)
+    shot_csv = shot_dir / "SHOT.csv"
+    write_series(shot_csv, series)
+    series = read_series(shot_csv)
+    fit_result = fit_series(series, rig=rig, fixed_stop=options.fixed_stop)
+    fit = fit_result.to_dict()
+    write_json(shot_dir / "FIT.json", fit_result.to_dict())
+    if options.plots:
+        from ..plots import plot_fit
+
+        plot_fit(series, fit_result, shot_dir / "FIT.png")
+    discovery = None
+    if options.discover:
+        discovery = _discover(series, rig, shot_dir / "REPORT.json")
+    return {"quality": tracking_quality(series), "fit": fit, "discovery": discovery}
+
+
+def _discover(series: Series, rig, path: Path) -> dict:
+    from ..discover import discover
+
+    report = discover([series], rig=rig)
+    data = report.to_dict() if hasattr(report, "to_dict") else dict(report)
+    write_json(path, data)
+    best = (data.get("findings") or [{}])[0]
+    return {"verdict": data.get("verdict"), "best_effect": best.get("effect"),
+            "best_delta_bic": best.get("delta_bic")}
+
+
+def tracking_quality(series: Series) -> dict:
+    """How well a shot was measured: coverage, median 1-sigma errors, camera figures.
+
+    Returns
+    -------
+    dict
+        Keys :data:`QUALITY_KEYS`; ``sigma_xy_median_m`` (m), ``sigma_theta_median_rad``
+        (rad) and ``quality_median`` are medians over measured frames (None when the
+        series has no such column).
+    """
+    data, meta = series.data, series.meta
+    ok = data["ok"].to_numpy() == 1
+
+    def median(col):
+        if col not in data.columns or not ok.any():
+            return None
+        vals = data.loc[ok, col].to_numpy(dtype=float)
+        vals = vals[np.isfinite(vals)]
+        return float(np.median(vals)) if vals.size else None
+
+    warnings = [str(w) for w in meta.get("warnings") or []]
+    return {
+        "n_frames": int(len(data)),
+        "n_measured": int(ok.sum()),
+        "frac_measured": float(ok.mean()) if len(data) else 0.0,
+        "frames_lost": meta.get("frames_lost"),
+        "sigma_xy_median_m": median("sigma_xy"),
+        "sigma_theta_median_rad": median("sigma_theta"),
+        "quality_median": median("quality"),
+        "camera_height_m": meta.get("camera_height_m"),
+        "grid_spacing_px": meta.get("grid_spacing_px"),
+        "t_stop_translation": meta.get("t_stop_translation"),
+        "t_stop_rotation": meta.get("t_stop_rotation"),
+        "n_warnings": len(warnings),
+        "warnings": " | ".join(warnings),
+    }
