@@ -43,10 +43,16 @@ class Compositor:
     jpeg_quality : int or None
         Extra per-frame JPEG compression (0-100), None = off.
     rng : numpy.random.Generator
+    glare : (lamps (N, 3) m, peak levels, spread rad), optional
+        Diffuse reflections of the lamps in the ice: each lamp's mirror image (below the
+        ice, so it moves against the lattice as the camera moves) as a broad Gaussian.
+    flicker : float
+        Relative RMS of the frame-to-frame brightness (lamp flicker, auto exposure).
     """
 
     def __init__(self, camera: Camera, vignetting: float, read_noise: float,
-                 shot_noise_gain: float, jpeg_quality: int | None, rng: np.random.Generator):
+                 shot_noise_gain: float, jpeg_quality: int | None, rng: np.random.Generator,
+                 glare=None, flicker: float = 0.0):
         self.cam = camera
         W, H = camera.width, camera.height
         uu, vv = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
@@ -73,6 +79,9 @@ class Compositor:
                       for _ in range(4)]
         self._pad = pad
         self.acc = np.zeros((self.canvas_size[1], self.canvas_size[0], 3), np.float32)
+        self.glare = glare
+        self.flicker = float(flicker)
+        self._flicker_phase = rng.uniform(0, 2 * np.pi)
 
     def ice_homography(self, cam: Camera, tex: Texture) -> np.ndarray:
         """Texture (col, row) -> canvas px at pose ``cam``."""
@@ -154,12 +163,14 @@ class Compositor:
         """
         cams = [cam_at(t) for t in times]
         n = len(times)
+        self._t_mid = 0.5 * (times[0] + times[-1])
+        self._cam_mid = cam_at(self._t_mid)
         size = self.canvas_size
         n_bg, d, uniform = self._bg_motion(cams[0], cams[-1], tex) if n > 1 else (1, 0, True)
         if n_bg <= 1 or (uniform and n_bg > 1 and np.abs(d).max() < 24):
             # one warp at mid-exposure; a camera translating over the ice shifts the
             # whole canvas alike, so the sub-frame average is a small shift kernel
-            mid = cam_at(0.5 * (times[0] + times[-1]))
+            mid = self._cam_mid
             bg = cv2.warpPerspective(tex.image, self.ice_homography(mid, tex), size,
                                      flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
             if n_bg <= 1:
@@ -206,10 +217,45 @@ class Compositor:
         self.acc[y0:y1, x0:x1] = roi * (1.0 / n)
         return self._finish()
 
+    def _glare_image(self, cam: Camera):
+        """The lamps' diffuse reflections seen by ``cam``: (H, W, 3) levels, or None.
+
+        Each is a broad Gaussian around the (distorted) image of the lamp's mirror point.
+        """
+        lamps, peak, spread = self.glare
+        pc = cam.to_camera(lamps)
+        front = pc[:, 2] > 0
+        if not front.any() or peak <= 0:
+            return None
+        uv = cam.distort(pc[front, :2] / pc[front, 2:]) * cam.f_px + [cam.cx, cam.cy]
+        sigma = spread * cam.f_px
+        W, H = cam.width, cam.height
+        near = ((uv[:, 0] > -4 * sigma) & (uv[:, 0] < W + 4 * sigma)
+                & (uv[:, 1] > -4 * sigma) & (uv[:, 1] < H + 4 * sigma))
+        if not near.any():
+            return None
+        uv = uv[near]
+        # on a grid 8x coarser (the field is smooth), then resized: cv2.resize puts
+        # coarse sample k at pixel 8 k + 3.5
+        cu = np.arange((W + 7) // 8) * 8 + 3.5
+        cv = np.arange((H + 7) // 8) * 8 + 3.5
+        gx = np.exp(-0.5 * ((cu[:, None] - uv[:, 0]) / sigma) ** 2)
+        gy = peak * np.exp(-0.5 * ((cv[:, None] - uv[:, 1]) / sigma) ** 2)
+        g = np.einsum("vi,ui->vu", gy, gx).astype(np.float32)  # no BLAS threads
+        g = cv2.resize(g, (len(cu) * 8, len(cv) * 8), interpolation=cv2.INTER_LINEAR)
+        return np.repeat(g[:H, :W, None], 3, axis=2)
+
     def _finish(self) -> np.ndarray:
-        """Distort, vignette, add noise; the final BGR uint8 frame."""
+        """Glare, distort, vignette and flicker, noise; the final BGR uint8 frame."""
         img = cv2.remap(self.acc, self.map1, self.map2, cv2.INTER_LINEAR)
-        cv2.multiply(img, self.vignette3, dst=img)
+        glare = self._glare_image(self._cam_mid) if self.glare is not None else None
+        if glare is not None:
+            cv2.add(img, glare, dst=img)
+        gain = 1.0
+        if self.flicker > 0:
+            gain += self.flicker * (np.sin(2 * np.pi * 0.7 * self._t_mid + self._flicker_phase)
+                                    * np.sqrt(0.5) + 0.5 * self.rng.standard_normal())
+        cv2.multiply(img, self.vignette3, dst=img, scale=gain)
         if self.read_noise > 0 or self.gain > 0:
             H, W = img.shape[:2]
             bank = self._bank[int(self.rng.integers(len(self._bank)))]

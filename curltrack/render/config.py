@@ -43,6 +43,18 @@ class RenderConfig:
     jpeg_quality : int, optional
         Extra per-frame JPEG compression before the mp4v encoder (blocking and ringing
         as in consumer video), default 85; None = only the mp4v encoder.
+    optics_blur_px : float
+        Lens and sensor softness: Gaussian sigma (px), baked into the ice and the rock,
+        default 0.6.
+    glare : float
+        Peak brightness (0-255 levels) of the lamps' diffuse reflections in the ice,
+        which slide against the lattice as the camera moves; default 10; 0 = off.
+    lamp_height_m, glare_spread_rad : float
+        Height of the lamps above the ice (m), default 6; angular spread of their
+        reflection by the pebbled surface (rad), default 0.12.
+    flicker : float
+        Relative RMS of the frame-to-frame brightness (lamp flicker beating with the
+        frame rate, auto exposure), default 0.01.
     occlusion : bool
         A broom head crosses the view above the rock, default False.
     occlusion_t_s : float, optional
@@ -72,6 +84,11 @@ class RenderConfig:
     shot_noise_gain: float = 0.08
     vignetting: float = 0.25
     jpeg_quality: int | None = 85
+    optics_blur_px: float = 0.6
+    glare: float = 10.0
+    lamp_height_m: float = 6.0
+    glare_spread_rad: float = 0.12
+    flicker: float = 0.01
     occlusion: bool = False
     occlusion_t_s: float | None = None
     occlusion_speed_m_s: float = 1.2
@@ -92,7 +109,8 @@ class RenderConfig:
             bad("blur_subframes", f"must be 1..64, got {self.blur_subframes!r}")
         if not 0.0 <= self.shutter <= 1.0:
             bad("shutter", f"must be in [0, 1], got {self.shutter!r}")
-        for name in ("read_noise", "shot_noise_gain", "stopped_tail_s"):
+        for name in ("read_noise", "shot_noise_gain", "stopped_tail_s", "glare",
+                     "optics_blur_px", "flicker"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 bad(name, f"must be >= 0, got {v!r}")
@@ -106,6 +124,10 @@ class RenderConfig:
             bad("lattice_phase", "fractions must be in [0, 1)")
         if not 0.5 <= self.texture_oversample <= 4:
             bad("texture_oversample", "must be 0.5..4")
+        if not (0 <= self.optics_blur_px <= 5 and 0 <= self.flicker <= 0.5):
+            bad("optics_blur_px", "optics_blur_px must be 0..5 px and flicker 0..0.5")
+        if not (1.0 <= self.lamp_height_m <= 50 and 0.01 <= self.glare_spread_rad <= 1):
+            bad("lamp_height_m", "lamp_height_m must be 1..50 m, glare_spread_rad 0.01..1")
         if self.occlusion_speed_m_s <= 0:
             bad("occlusion_speed_m_s", "must be > 0")
         try:

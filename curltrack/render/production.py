@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 
+import cv2
 import numpy as np
 import pandas as pd
 
@@ -118,17 +119,28 @@ class Production:
                                  30000 / max(bounds[2] - bounds[0], bounds[3] - bounds[1])))
         world_phase = (self.phase[0] * rig.spacing_x_m, self.phase[1] * rig.spacing_y_m)
         self.tex = ice_texture(rig, bounds, self.ppm_tex, world_phase, cfg.ice, rng)
+        if cfg.optics_blur_px > 0:
+            sig = cfg.optics_blur_px * self.ppm_tex / self.ppm_img
+            self.tex.image = cv2.GaussianBlur(self.tex.image, (0, 0), sig)
         if abs(np.sin(path.yaw0)) > abs(np.cos(path.yaw0)):  # image rows along world Y
             self.tex = self.tex.transpose()
         ppm_rock = 1.5 * path.f_px / (self.cam_cfg.height_m - rig.rock_height_m)
         self.sprites = rock_sprites(rig, ppm_rock, rng, 1.5 / ppm_rock,
                                     marker_diameter_m=cfg.marker_diameter_m)
+        if cfg.optics_blur_px > 0:  # sprites hold 1.5 texels per image pixel
+            self.sprites = [replace(s, rgba=cv2.GaussianBlur(s.rgba, (0, 0),
+                                                             1.5 * cfg.optics_blur_px))
+                            for s in self.sprites]
         self.broom = None
         if cfg.occlusion:
             self.broom = replace(broom_sprite(self.ppm_img * 1.2, rng),
                                  z_m=rig.rock_height_m + BROOM_ABOVE_TOP_M)
+        glare = None
+        if cfg.glare > 0:  # mirror images of the lamps, below the ice
+            lamps = np.c_[self.tex.lamps, np.full(len(self.tex.lamps), -cfg.lamp_height_m)]
+            glare = (lamps, cfg.glare, cfg.glare_spread_rad)
         self.comp = Compositor(self.cams[0], cfg.vignetting, cfg.read_noise,
-                               cfg.shot_noise_gain, cfg.jpeg_quality, rng)
+                               cfg.shot_noise_gain, cfg.jpeg_quality, rng, glare, cfg.flicker)
         self._drawn = True
 
     @property

@@ -38,6 +38,7 @@ class Texture:
     ppm: float
     z_m: float = 0.0
     transposed: bool = False
+    lamps: np.ndarray | None = None  # (N, 2) world X, Y of the overhead lamps (m)
 
     @property
     def affine(self) -> np.ndarray:
@@ -50,7 +51,7 @@ class Texture:
     def transpose(self) -> "Texture":
         """The same texture stored the other way round."""
         return Texture(np.ascontiguousarray(self.image.transpose(1, 0, 2)), self.X0, self.Y0,
-                       self.ppm, self.z_m, not self.transposed)
+                       self.ppm, self.z_m, not self.transposed, self.lamps)
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,8 @@ class IceStyle:
     Parameters
     ----------
     ice_color : str
-        Base colour of the lit ice ("#rrggbb"), default "#e2e8ec" (bluish white).
+        Base colour of the lit ice ("#rrggbb"), default "#d0d6db" (bluish white, with
+        headroom below saturation for the lamp pools and glare).
     illumination : float
         Relative RMS of the uneven illumination (overhead lamps) over the sheet, 0.08.
     pebble_density_per_m2 : float
@@ -81,7 +83,7 @@ class IceStyle:
         Faint straight scratches (old rock paths, skates), default 0.6 per m^2.
     """
 
-    ice_color: str = "#e2e8ec"
+    ice_color: str = "#d0d6db"
     illumination: float = 0.08
     pebble_density_per_m2: float = 3000.0
     pebble_size_m: float = 0.0025
@@ -189,7 +191,7 @@ def ice_texture(rig: Rig, bounds, ppm: float, phase, style: IceStyle,
         tone = tuple(float(np.clip(v + shade, 0, 255)) for v in base)
         a, b = (p - d).astype(int), (p + d).astype(int)
         cv2.line(image, tuple(int(v) for v in a), tuple(int(v) for v in b), tone, 1, cv2.LINE_AA)
-    return Texture(image, X0, Y0, ppm, z_m=-rig.grid_depth_m / N_ICE)
+    return Texture(image, X0, Y0, ppm, z_m=-rig.grid_depth_m / N_ICE, lamps=lamps)
 
 
 @dataclass
