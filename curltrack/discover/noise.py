@@ -36,7 +36,7 @@ def _second_differences(frame, q, k):
     d2 = (q[2 * k:] - 2.0 * q[k:-k] + q[:-2 * k])[ok]
     if d2.size == 0:
         return d2
-    win = min(61, d2.size)
+    win = min(15, d2.size)
     kern = np.ones(win) / win
     trend = np.convolve(np.pad(d2, (win // 2, win - 1 - win // 2), mode="edge"), kern, "valid")
     return d2 - trend
