@@ -40,7 +40,8 @@ class StopTimes:
     ----------
     t_stop_translation, t_stop_rotation : float or None
         End of motion (s since the start frame); None when that motion does not stop
-        inside the series (still moving at the end, or never moved).
+        inside the series (still moving at the end); the first time (0) when it never
+        moved above the noise.
     stop_frame_translation, stop_frame_rotation : int or None
         First frame with ``t >= t_stop_*``.
     t_stop_translation_err, t_stop_rotation_err : float or None
@@ -232,8 +233,9 @@ def detect_stops(data: pd.DataFrame, fps: float | None = None) -> StopTimes:
     Returns
     -------
     StopTimes
-        ``t_stop_*`` below one frame from a fit of the final approach; None (with a
-        note) when that motion does not end at rest inside the series.
+        ``t_stop_*`` below one frame from a fit of the final approach; the first
+        time (0) when that motion never rises above the noise (e.g. the translation of
+        a pure rotation); None (with a note) when it is still going at the end.
 
     Examples
     --------
@@ -264,6 +266,14 @@ def detect_stops(data: pd.DataFrame, fps: float | None = None) -> StopTimes:
     t_rot, e_rot, note = fit_final_approach(t, th * th_sign, dt)
     if note:
         out.notes.append(f"rotation: {note}")
+    # A motion that never rises above the noise (pure rotation's translation, a
+    # non-spinning rock's rotation) is over from the start: t_stop = 0, as the
+    # simulator reports it.
+    t_first = float(data["t"].iloc[0])
+    if t_tr is None and out.notes and out.notes[0] == "translation: no motion above the noise":
+        t_tr, e_tr = t_first, 0.0
+    if t_rot is None and any(n == "rotation: no motion above the noise" for n in out.notes):
+        t_rot, e_rot = t_first, 0.0
     out.t_stop_translation, out.t_stop_translation_err = t_tr, e_tr
     out.t_stop_rotation, out.t_stop_rotation_err = t_rot, e_rot
     out.stop_frame_translation = _first_frame_at(data, t_tr)

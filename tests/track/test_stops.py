@@ -80,7 +80,7 @@ def test_no_stop_when_still_moving_or_not_moving():
     assert s.t_stop_translation is None and s.stop_frame_translation is None
     assert s.t_stop_rotation is None
     assert any("still moving" in n for n in s.notes)
-    # pure rotation: translation never moves -> None with a note; rotation stops
+    # pure rotation: translation never moves -> stopped at t = 0 (as the simulator says)
     t = np.arange(0, 10, 1 / FPS)
     n = t.size
     data = pd.DataFrame({"frame": np.arange(n), "t": t, "x": rng.normal(0, NOISE_M, n),
@@ -88,7 +88,7 @@ def test_no_stop_when_still_moving_or_not_moving():
                          "theta": cf.decel_position(t, 20.0, 1.6, 7.3) + rng.normal(0, NOISE_RAD, n),
                          "ok": 1})
     s = detect_stops(data, None)
-    assert s.t_stop_translation is None
+    assert s.t_stop_translation == 0.0 and s.stop_frame_translation == 0  # never moved
     assert any("no motion" in n for n in s.notes)
     assert abs(s.t_stop_rotation - 7.3) * FPS < 1.5
 
