@@ -6,7 +6,9 @@ paper's pebbled-ice friction law (phi = -0.19, alpha = 0.0076):
 
 * film-relative friction, uniform load (kappa = 0.63, from the paper's C_omega = 2.54);
 * ice-relative friction with a front-back asymmetry epsilon = 0.1;
-* ice-relative friction, uniform load (no curl at all, by symmetry).
+* ice-relative friction, uniform load (no curl at all, by symmetry);
+* film-relative again at fixed length (v0 chosen so every shot ends at y = 28 m, the
+  protocol of the paper's spinner series).
 
 Usage: python scripts/plot_curl_vs_omega.py [-o docs/curl_vs_omega.png]
 """
@@ -19,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from curltrack._atomic import atomic_path
-from curltrack.physics.segment import KAPPA_DRAW, curl_vs_omega
+from curltrack.physics.segment import KAPPA_DRAW, SegmentModel, curl_vs_omega, \
+    simulate_segment, v0_for_length
 
 OMEGAS = np.array([0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.5, 6.0, 9.0])
 CASES = {
@@ -41,7 +44,7 @@ def main(argv=None) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 5.6))
     for (label, kw), marker in zip(CASES.items(), "osd"):
         res = curl_vs_omega(OMEGAS, v0=2.0, **kw)
         curl = -res["x_F"]
@@ -55,15 +58,26 @@ def main(argv=None) -> int:
         ax2.loglog(OMEGAS, np.maximum(curl, 1e-4), marker=marker,
                    label=label + (" (x_F = 0 exactly, drawn at 1e-4)" if zero else ""))
     ax2.loglog(OMEGAS, 0.5 * OMEGAS / OMEGAS[3], "k:", lw=1, label="curl proportional to omega0")
+    turns, curl = [], []
+    print("film-relative at fixed length (y_F = 28 m)")
+    for w in np.concatenate([OMEGAS, [12.0, 15.0]]):
+        v0 = v0_for_length(w, 28.0)
+        tr = simulate_segment(SegmentModel(v0=v0, omega0=w), t=[600.0])
+        turns.append(tr.theta[0] / (2 * np.pi))
+        curl.append(-tr.x[0])
+        print(f"  omega0 = {w:5.2f} rad/s  v0 = {v0:.3f} m/s  turns = {turns[-1]:6.2f}  "
+              f"curl = {curl[-1]:7.4f} m")
+    ax1.plot(turns, curl, "o--", color="C0", mfc="none",
+             label="film-relative, fixed length y_F = 28 m (paper's spinner protocol)")
     ax1.axhspan(0.5, 1.5, color="0.9", zorder=0, label="paper: pebbled-ice draws (~1 m)")
     ax1.set_xlabel("number of turns")
     ax1.set_ylabel("curl toward the spin side, |x_F| (m)")
     ax1.set_title("v0 = 2 m/s, mu = 0.0076 u^-0.19 on every segment")
-    ax1.legend(fontsize=7)
+    ax1.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=1)
     ax2.set_xlabel("omega0 (rad/s)")
     ax2.set_ylabel("|x_F| (m)")
     ax2.set_title("paper: curl only weakly dependent on omega0")
-    ax2.legend(fontsize=7)
+    ax2.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=1)
     fig.tight_layout()
     out = Path(args.output)
     with atomic_path(out) as tmp:

@@ -263,3 +263,23 @@ def curl_vs_omega(omega0s, v0: float = 2.0, **kw) -> dict:
     cols = np.array(rows, dtype=float).T
     keys = ("omega0", "x_F", "y_F", "turns", "t_FS", "t_Ftheta", "lambda_y", "lambda_theta")
     return dict(zip(keys, cols))
+
+
+def v0_for_length(omega0: float, y_target: float = 28.0, **kw) -> float:
+    """Initial speed (m/s) that makes a shot end at y = ``y_target`` (m).
+
+    The paper's spinner series was thrown to finish near the house (roughly fixed length,
+    slower release for more turns); this reproduces that protocol.
+    """
+    from scipy.optimize import brentq
+
+    def miss(v0):
+        return simulate_segment(SegmentModel(v0=v0, omega0=omega0, **kw), t=[HORIZON_S]).y[0] \
+            - y_target
+
+    lo, hi = 0.2, 1.0
+    while miss(hi) < 0:
+        lo, hi = hi, hi * 1.5
+        if hi > 20:
+            raise ParameterError(f"no v0 <= 20 m/s reaches y = {y_target} m", where="v0")
+    return float(brentq(miss, lo, hi, xtol=1e-4))
