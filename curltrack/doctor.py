@@ -1,0 +1,312 @@
+"""Check a video + rig before a long run: is there anything to measure?
+
+``diagnose(video, rig)`` reads a few frames spread over the video (never the whole of
+it) and runs the first steps of the pipeline on each: the container (codec, frame rate,
+frame count), the rig's markers, the thread grid (spacing, residual), the rock's size in
+the image and the camera height implied by the parallax between the marker plane and
+the ice.  The result is a checklist; a check is *fatal* when ``track`` cannot succeed
+(no frames, no markers, no grid anywhere), a *warning* when it will run but the result
+may suffer (markers missing in some frames, grid only partly visible, a tiny rock, an
+implausible camera height, a low frame rate).
+
+Example::
+
+    report = diagnose("shot.mp4", load_rig("rig.toml"))
+    print(report.format())          # ✓ / ✗ / ! lines with advice
+    report.ok                       # False when something is fatal
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .errors import CurltrackError, TrackingError
+from .rig import Rig
+
+__all__ = ["Check", "DoctorReport", "diagnose"]
+
+#: Frames sampled over the video.
+N_SAMPLES = 6
+#: Below this frame rate stop times and λ lose precision (frames/s).
+MIN_FPS = 20.0
+#: Rock diameter in the image below which markers are a few px only (px).
+MIN_ROCK_PX = 45.0
+#: Thread spacing in the image below which threads blur together (px).
+MIN_SPACING_PX = 8.0
+#: Camera heights a rig of this kind is mounted at (m).
+HEIGHT_RANGE_M = (0.8, 8.0)
+
+
+@dataclass
+class Check:
+    """One line of the checklist.
+
+    Attributes
+    ----------
+    name : str
+        ``video``, ``fps``, ``markers``, ``grid``, ``rock_size``, ``camera_height``.
+    status : str
+        ``"ok"``, ``"warn"`` or ``"fail"`` (fatal: ``track`` cannot succeed).
+    detail : str
+        What was measured, with units.
+    advice : str
+        What to do about it (empty when ok).
+    values : dict
+        The numbers behind ``detail`` (JSON-ready).
+    """
+
+    name: str
+    status: str
+    detail: str
+    advice: str = ""
+    values: dict = field(default_factory=dict)
+
+
+@dataclass
+class DoctorReport:
+    """The checklist for one video + rig."""
+
+    video: str
+    rig: str | None
+    checks: list = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        """False when any check is fatal."""
+        return not any(c.status == "fail" for c in self.checks)
+
+    def check(self, name: str) -> Check | None:
+        return next((c for c in self.checks if c.name == name), None)
+
+    def to_dict(self) -> dict:
+        return {"video": self.video, "rig": self.rig, "ok": self.ok,
+                "checks": [asdict(c) for c in self.checks]}
+
+    def format(self) -> str:
+        """The checklist as text: one line per check (✓ ok, ! warning, ✗ fatal)."""
+        mark = {"ok": "✓", "warn": "!", "fail": "✗"}
+        lines = [f"curltrack doctor: {self.video}"]
+        for c in self.checks:
+            lines.append(f"  {mark[c.status]} {c.name:<14s} {c.detail}")
+            if c.advice:
+                lines.append(f"    {'':<14s} -> {c.advice}")
+        lines.append("  verdict: " + ("ready to track" if self.ok else
+                                      "track will fail: fix the ✗ items first"))
+        return "\n".join(lines)
+
+
+def _frames_at(path, indices, fps_override):
+    from .video import iter_frames
+
+    for i in indices:
+        for fr in iter_frames(path, start=int(i), end=int(i) + 1, fps_override=fps_override):
+            yield fr
+
+
+def _rock_mask(shape, xy_px, rig, px_per_m):
+    import cv2
+
+    m = np.zeros(shape[:2], np.uint8)
+    c = np.nanmean(xy_px, axis=0)
+    r = 0.5 * rig.rock_diameter_m * px_per_m
+    cv2.circle(m, (int(round(c[0])), int(round(c[1]))), int(np.ceil(1.35 * r + 8)), 255, -1)
+    return m
+
+
+def _sample(image, rig, det):
+    """Markers and grid on one frame -> dict of what was found."""
+    from .calib import calibrate_frame
+    from .track.parallax import similarity_fit
+
+    out = {"markers_found": None, "grid": None, "grid_msg": "", "scale": np.nan,
+           "rock_px": np.nan, "spacing_px": np.nan, "residual_px": np.nan}
+    mf = det.detect(image)
+    out["markers_found"] = mf.found.tolist()
+    mask = None
+    L = det.layout_m
+    sep_m = float(np.hypot(*(L[0] - L[1])))
+    if mf.found.all():
+        sep_px = float(np.hypot(*(mf.xy_px[0] - mf.xy_px[1])))
+        out["rock_px"] = rig.rock_diameter_m * sep_px / sep_m
+        mask = _rock_mask(image.shape, mf.xy_px, rig, sep_px / sep_m)
+    try:
+        cal = calibrate_frame(image, rig, mask=mask)
+    except TrackingError as exc:
+        out["grid_msg"] = exc.message
+        return out
+    out["grid"] = True
+    out["spacing_px"], out["residual_px"] = float(cal.spacing_px), float(cal.residual_px)
+    out["n_threads"] = list(cal.n_threads)
+    if mf.found.all():
+        ice = cal.image_to_ice(mf.xy_px)
+        if np.isfinite(ice).all():
+            out["scale"] = float(similarity_fit(L, ice)[2])
+    return out
+
+
+def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
+    """Check a video and a rig before tracking.
+
+    Parameters
+    ----------
+    video : path
+        The shot video.
+    rig : Rig
+        The rig (grid spacings and colours, rock, markers, camera).
+    n_samples : int
+        Frames to examine, spread evenly from the first to the last.
+
+    Returns
+    -------
+    DoctorReport
+        ``report.ok`` is False when ``track`` cannot succeed.  Raises nothing for a bad
+        video: an unreadable file is a failed ``video`` check.
+    """
+    from .track.markers import MarkerDetector
+    from .video import probe_video
+
+    rep = DoctorReport(str(video), rig.source)
+    try:
+        info = probe_video(video, fps_override=rig.fps)
+    except CurltrackError as exc:
+        rep.checks.append(Check("video", "fail", str(exc),
+                                "re-export the video (H.264 mp4) or check the file"))
+        return rep
+    rep.checks.append(Check(
+        "video", "ok", f"{info.codec or '?'} {info.width}x{info.height}, {info.n_frames} "
+        f"frames, {info.duration_s:.2f} s", values=asdict(info)))
+    fps_src = "rig [camera].fps" if rig.fps else "container"
+    if info.fps < MIN_FPS:
+        rep.checks.append(Check("fps", "warn", f"{info.fps:.3g} frames/s ({fps_src})",
+                                f"below {MIN_FPS:g} fps stop times and lambda lose "
+                                "precision; record at 30 fps or more",
+                                values={"fps": info.fps}))
+    else:
+        rep.checks.append(Check("fps", "ok", f"{info.fps:.4g} frames/s ({fps_src})",
+                                values={"fps": info.fps}))
+    if info.n_frames < 12:
+        rep.checks.append(Check("length", "fail", f"only {info.n_frames} frames",
+                                "a shot needs at least 12 measured frames; record the "
+                                "whole shot until the rock rests"))
+    idx = np.unique(np.linspace(0, info.n_frames - 1, max(1, min(n_samples, info.n_frames)))
+                    .round().astype(int))
+    det = MarkerDetector(rig)
+    samples = []
+    try:
+        for fr in _frames_at(video, idx, rig.fps):
+            samples.append((fr.index, _sample(fr.image, rig, det)))
+    except CurltrackError as exc:
+        rep.checks.append(Check("decode", "fail", str(exc), "the file is damaged; re-export"))
+        return rep
+    _marker_checks(rep, rig, samples)
+    _grid_checks(rep, rig, samples)
+    _geometry_checks(rep, rig, samples)
+    return rep
+
+
+def _frames_text(frames) -> str:
+    return ", ".join(str(f) for f in frames) if frames else "none"
+
+
+def _marker_checks(rep, rig, samples):
+    n = len(samples)
+    per = np.array([s["markers_found"] for _, s in samples], bool).reshape(n, -1)
+    counts = {m.color: int(per[:, i].sum()) for i, m in enumerate(rig.markers)}
+    all_found = [f for (f, _), row in zip(samples, per) if row.all()]
+    detail = (f"all markers in {len(all_found)}/{n} sampled frames; per colour: "
+              + ", ".join(f"{c} {k}/{n}" for c, k in counts.items()))
+    values = {"frames_sampled": [f for f, _ in samples], "frames_all_found": all_found,
+              "per_colour": counts}
+    if not all_found:
+        missing = [c for c, k in counts.items() if k == 0] or list(counts)
+        rep.checks.append(Check("markers", "fail", detail,
+                                f"no marker of colour {', '.join(missing)} seen: check the "
+                                "[[markers]] colours in the rig against the video, and "
+                                "that the rock is in view", values))
+    elif len(all_found) < n:
+        lost = [f for f, _ in samples if f not in all_found]
+        rep.checks.append(Check("markers", "warn", detail,
+                                f"markers not all visible in frame(s) {_frames_text(lost)} "
+                                "(occluded, out of view, or blurred): those frames will "
+                                "be ok = 0", values))
+    else:
+        rep.checks.append(Check("markers", "ok", detail, values=values))
+
+
+def _grid_checks(rep, rig, samples):
+    n = len(samples)
+    found = [(f, s) for f, s in samples if s["grid"]]
+    values = {"frames_with_grid": [f for f, _ in found]}
+    if not found:
+        msg = next((s["grid_msg"] for _, s in samples if s["grid_msg"]), "")
+        # without markers the rock cannot be masked out, and its edge can hide the
+        # threads' periodicity: then the grid verdict is not reliable, only a warning
+        unmasked = not any(all(s["markers_found"]) for _, s in samples)
+        rep.checks.append(Check("grid", "warn" if unmasked else "fail",
+                                f"no thread grid in any of {n} sampled frames ({msg})"
+                                + (" — rock not masked (no markers), unreliable"
+                                   if unmasked else ""),
+                                f"check [grid] spacing_x_m/spacing_y_m "
+                                f"({rig.spacing_x_m:g}/{rig.spacing_y_m:g} m) and colours "
+                                "against the ice, the focus and the lighting", values))
+        return
+    sp = float(np.median([s["spacing_px"] for _, s in found]))
+    res = float(np.median([s["residual_px"] for _, s in found]))
+    values.update(spacing_px=sp, residual_px=res)
+    detail = (f"found in {len(found)}/{n} sampled frames; spacing {sp:.1f} px, residual "
+              f"{res:.2f} px")
+    if len(found) < n:
+        lost = [f for f, s in samples if not s["grid"]]
+        rep.checks.append(Check("grid", "warn", detail,
+                                f"grid not found in frame(s) {_frames_text(lost)}: those "
+                                "frames will be lost", values))
+    elif sp < MIN_SPACING_PX:
+        rep.checks.append(Check("grid", "warn", detail,
+                                f"threads only {sp:.1f} px apart: move the camera lower or "
+                                "use a longer lens", values))
+    else:
+        rep.checks.append(Check("grid", "ok", detail, values=values))
+
+
+def _geometry_checks(rep, rig, samples):
+    rock = [s["rock_px"] for _, s in samples if np.isfinite(s["rock_px"])]
+    if rock:
+        d = float(np.median(rock))
+        ok = d >= MIN_ROCK_PX
+        rep.checks.append(Check(
+            "rock_size", "ok" if ok else "warn",
+            f"rock {d:.0f} px across ({rig.rock_diameter_m:g} m in the rig)",
+            "" if ok else f"the rock is under {MIN_ROCK_PX:.0f} px: markers are a few px; "
+            "move the camera lower or use a higher resolution", {"rock_px": d}))
+    scales = np.array([s["scale"] for _, s in samples], float)
+    scales = scales[np.isfinite(scales)]
+    if scales.size == 0:
+        rep.checks.append(Check("camera_height", "warn", "not measurable (needs markers and "
+                                "grid in the same frame)",
+                                "give [camera].height_m in the rig", {}))
+        return
+    from .track.parallax import ICE_REFRACTIVE_INDEX
+
+    s = float(np.median(scales))
+    h = rig.rock_height_m + rig.grid_depth_m / ICE_REFRACTIVE_INDEX
+    H = h * s / (s - 1.0) if s > 1.0 else np.inf
+    lo, hi = HEIGHT_RANGE_M
+    values = {"layout_scale": s, "camera_height_m": H if np.isfinite(H) else None,
+              "rig_camera_height_m": rig.camera_height_m}
+    layout_hint = ("the marker layout ([[markers]] x_m/y_m) or [rock].height_m may be wrong")
+    if not np.isfinite(H) or not lo <= H <= hi:
+        rep.checks.append(Check(
+            "camera_height", "warn", f"parallax implies {H:.2f} m (markers look "
+            f"{(s - 1) * 100:+.1f} % larger than on the ice)", f"implausible: {layout_hint}",
+            values))
+    elif rig.camera_height_m is not None and abs(H - rig.camera_height_m) > max(
+            0.3, 0.2 * rig.camera_height_m):
+        rep.checks.append(Check(
+            "camera_height", "warn", f"parallax implies {H:.2f} m, the rig says "
+            f"{rig.camera_height_m:g} m", f"check [camera].height_m; or {layout_hint}",
+            values))
+    else:
+        rep.checks.append(Check("camera_height", "ok", f"about {H:.2f} m from the "
+                                f"parallax over {scales.size} frame(s)", values=values))

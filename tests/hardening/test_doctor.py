@@ -1,0 +1,91 @@
+"""`curltrack doctor`: the checklist on good and bad rendered videos."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from curltrack.rig import Marker
+from hardening.badinputs import edit_video, hide_grid, other_colour_rig
+
+
+def _status(data) -> dict:
+    return {c["name"]: c["status"] for c in data["checks"]}
+
+
+def test_good_video_is_ready(cli, hdir, rig_file, good_clip):
+    video, truth, _ = good_clip
+    res = cli.succeeds("doctor", video, "--rig", rig_file, "--json")
+    data = json.loads(res.stdout)
+    assert data["ok"] is True
+    st = _status(data)
+    assert all(st[k] == "ok" for k in ("video", "fps", "markers", "grid", "rock_size",
+                                       "camera_height")), st
+    checks = {c["name"]: c["values"] for c in data["checks"]}
+    assert checks["video"]["n_frames"] == len(truth.data)
+    assert checks["fps"]["fps"] == pytest.approx(truth.meta["fps"])
+    assert checks["grid"]["spacing_px"] == pytest.approx(truth.meta["grid_spacing_px"], rel=0.05)
+    H = float(truth.data["camera_height_m"].iloc[0])
+    # one-frame parallax estimates (markers 16 cm apart): a plausibility check, ~10 %
+    assert checks["camera_height"]["camera_height_m"] == pytest.approx(H, rel=0.12)
+    text = cli.succeeds("doctor", video, "--rig", rig_file).stdout
+    assert "✓ markers" in text and "ready to track" in text
+
+
+def test_wrong_colours_are_fatal(cli, hdir, good_clip):
+    video, _, rig = good_clip
+    other = hdir / "doctor_other.toml"
+    other.write_text(other_colour_rig(rig).to_toml())
+    line = cli.fails("doctor", video, "--rig", other, names=[video, "markers"])
+    assert other_colour_rig(rig).markers[0].color in line
+    res = cli("doctor", video, "--rig", other, "--json")
+    assert res.exit_code == 1 and _status(json.loads(res.stdout))["markers"] == "fail"
+
+
+def test_hidden_grid_is_fatal(cli, hdir, rig_file, good_clip):
+    video, truth, _ = good_clip
+    tr = truth.data
+    v = edit_video(video, hdir / "doctor_nogrid.mp4",
+                   lambda k, img: hide_grid(img, (tr.u_top_px[k], tr.v_top_px[k]), 42))
+    cli.fails("doctor", v, "--rig", rig_file, names=[v, "grid"])
+
+
+def test_unreadable_video_is_fatal(cli, hdir, rig_file, good_clip):
+    v = hdir / "doctor_trunc.mp4"
+    v.write_bytes(good_clip[0].read_bytes()[:5000])
+    res = cli("doctor", v, "--rig", rig_file, "--json")
+    assert res.exit_code == 1
+    assert _status(json.loads(res.stdout)) == {"video": "fail"}
+
+
+@pytest.mark.parametrize("factor", [1.3, 0.7])
+def test_wrong_marker_layout_flags_the_camera_height(cli, hdir, good_clip, factor):
+    """Markers placed 30 % off in the rig: the parallax gives an implausible height."""
+    video, _, rig = good_clip
+    bad = replace(rig, markers=tuple(Marker(m.color, m.x_m * factor, m.y_m * factor)
+                                     for m in rig.markers))
+    p = hdir / f"doctor_layout{factor}.toml"
+    p.write_text(bad.to_toml())
+    data = json.loads(cli.succeeds("doctor", video, "--rig", p, "--json").stdout)
+    assert _status(data)["camera_height"] == "warn"
+    assert _status(data)["markers"] == "ok"
+
+
+def test_rig_camera_height_disagreeing(cli, hdir, good_clip):
+    video, truth, rig = good_clip
+    H = float(truth.data["camera_height_m"].iloc[0])
+    p = hdir / "doctor_height.toml"
+    p.write_text(replace(rig, camera_height_m=round(2.5 * H, 2)).to_toml())
+    data = json.loads(cli.succeeds("doctor", video, "--rig", p, "--json").stdout)
+    assert _status(data)["camera_height"] == "warn"
+
+
+def test_json_file_output(cli, hdir, rig_file, good_clip):
+    out = hdir / "doctor.json"
+    cli.succeeds("doctor", good_clip[0], "--rig", rig_file, "-o", out)
+    data = json.loads(out.read_text())
+    assert data["ok"] and np.isfinite(
+        [c for c in data["checks"] if c["name"] == "grid"][0]["values"]["residual_px"])
