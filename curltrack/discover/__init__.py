@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import InputError
 from . import scoring
-from .candidates import build_candidates
+from .candidates import build_candidates, untested
 from .model import JointModel
 from .residuals import structure_tests
 from .search import (NONLINEAR_MARGIN, folds_shot, folds_time, heldout, refine_candidate,
@@ -101,21 +101,17 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     if effects:
         cands = [c for c in cands if c.name in set(effects)]
     scores = [score_candidate(base, fit0, c, seg_slices, rng, n_boot=n_boot) for c in cands]
-    # nonlinear refits, most promising first; a candidate whose linear gain is below
-    # half the best refitted delta-BIC cannot win and keeps its linear score
-    best = -np.inf
+    # nonlinear refits of every candidate whose linear delta-BIC comes near its
+    # threshold.  (The linear gain is exact near the null, where thresholds live, but can
+    # underestimate a strong effect several-fold, so it never ranks candidates.)
     by_name = {c.name: c for c in cands}
-    for sc in sorted(scores, key=lambda s: -s.delta_bic_linear):
+    for sc in scores:
         if sc._refine is None:
             continue
-        floor = max(sc.threshold["threshold"], 0.0) - NONLINEAR_MARGIN
-        if sc.delta_bic_linear < floor or sc.delta_bic_linear < 0.5 * best:
-            if sc.delta_bic_linear >= floor:
-                sc.note += "; not refitted (linear gain far below the best candidate's)"
+        if sc.delta_bic_linear < max(sc.threshold["threshold"], 0.0) - NONLINEAR_MARGIN:
             continue
         refine_candidate(sc, base, fit0, name=names)
         if sc.fit is not None:
-            best = max(best, sc.delta_bic)
             fixed = [p.name for p in by_name[sc.name].location]
             sc.heldout = {"time": heldout(sc.fit, f_time, base, fixed)}
             if f_shot is not None:
@@ -123,7 +119,9 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
 
     from .report import build_report
 
-    return build_report(shots, base, fit0, before, h0, h0_loso, scores)
+    report = build_report(shots, base, fit0, before, h0, h0_loso, scores)
+    report["not_tested"] = untested(shots, baseline)
+    return report
 
 
 def write_report(report: dict, path, plot=None) -> None:

@@ -116,6 +116,25 @@ def effects_for(cand: Candidate | None, values: dict, shot_index: int, shots) ->
     raise ValueError(f"unknown candidate {cand.name!r}")
 
 
+def untested(shots, baseline: str) -> dict:
+    """Effects that cannot be told from the baseline with these shots, and why."""
+    out = {}
+    translating = [s for s in shots if s.translates]
+    spins = {s.spin for s in translating if s.spins}
+    if baseline != "dry":
+        out["velocity_dependent_friction"] = ("part of the paper baseline (phi free); "
+                                              "tested against --baseline dry")
+    if not translating:
+        out["ice_slope"] = out["friction_patch"] = out["late_curl"] = "the rock does not slide"
+    elif len(spins) < 2:
+        out["ice_slope"] = (
+            "needs shots of both spin directions in a common frame: with one spin "
+            "direction a lateral slope is degenerate with the curl a_T, and a slope "
+            "along the sheet with the friction law (alpha, phi) up to a late lateral "
+            "term indistinguishable from late_curl")
+    return out
+
+
 def build_candidates(shots, baseline: str) -> list:
     """The candidates that make sense for these shots and this baseline.
 
@@ -150,7 +169,9 @@ def build_candidates(shots, baseline: str) -> list:
                      "is told from the curl (opposite for them)"))
         y_max = max(float(np.nanmax(s.obs["y"][s.use["y"]])) for s in translating)
         if y_max > 1.0:
-            nodes = np.linspace(0.0, y_max, 21)
+            # edges every ~0.4 m (at least 21 nodes): in the linear limit a patch's
+            # columns come from one simulation per node (see search.scan_columns)
+            nodes = np.linspace(0.0, y_max, max(21, int(np.ceil(y_max / 0.4)) + 1))
             grid = [{"y_start_m": float(a), "y_end_m": float(b)}
                     for i, a in enumerate(nodes) for b in nodes[i + 1:]
                     if b - a <= 0.75 * y_max]

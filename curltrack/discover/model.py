@@ -138,6 +138,8 @@ class JointModel:
         from ..physics import ShotModel, simulate
 
         self._ShotModel, self._simulate = ShotModel, simulate
+        #: candidate values held fixed (a scan location, a pick's shot index)
+        self.cand_fixed: dict | None = None
         rig = rig or default_rig()
         self.R, self.r_band = rig.inertia_radius_m, rig.band_radius_m
         self.shots, self.baseline, self.cand = shots, baseline, cand
@@ -152,8 +154,6 @@ class JointModel:
                                                  for s in shots]))
         if baseline == "dry":
             self.values["phi_y"] = self.values["phi_theta"] = 0.0
-            for s in shots:  # a dry start: alpha from the stop times
-                pass
         free_shared = []
         if trans:
             free_shared += ["alpha_y"] + ([] if baseline == "dry" else ["phi_y"])
@@ -201,10 +201,8 @@ class JointModel:
         if self.cand is None:
             return {}
         out = {p.name: values[p.name] for p in self.cand.params}
-        out.update({k: v for k, v in (self.cand_fixed or {}).items()})
+        out.update(self.cand_fixed or {})
         return out
-
-    cand_fixed: dict | None = None
 
     def predict_shot(self, values: dict, i: int, t=None) -> dict:
         """Model ``x``, ``y`` (m), ``theta`` (rad) of shot ``i`` at times ``t`` (s)."""

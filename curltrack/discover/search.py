@@ -31,6 +31,11 @@ NONLINEAR_MARGIN = 3.0
 #: chi-square change of 1e-6 is ~0.002 on 2000 points, far below any decision scale
 FIT_MAX_NFEV = 50
 FIT_TOL = 1e-6
+#: a scanned candidate is refitted briefly from this many distinct scan locations and
+#: the best is finished: with a strong effect the baseline is pulled far from the truth
+#: and the linear scan can rank the right location below a wrong one
+N_STARTS = 4
+START_NFEV = 8
 
 
 @dataclass
@@ -172,18 +177,34 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
         score.note += "; not identifiable with these shots (degenerate with the baseline)"
         score.delta_bic = score.delta_bic_linear = -np.inf
         return score
-    score._refine = (cand, cols[i_loc][:, list(sub)], loc, sub)
+    # starts for the nonlinear fit: the best few distinct locations (the linear gain is
+    # exact near the null but can misplace a strong effect, see refine_candidate)
+    starts = []
+    for idx in np.argsort(-stats):
+        i2, sub2 = keys[idx]
+        loc2 = dict(locs[i2])
+        if any(_close(loc2, st[1]) for st in starts):
+            continue
+        starts.append((cols[i2][:, list(sub2)], loc2, sub2, ks[idx]))
+        if len(starts) >= (N_STARTS if cand.location else 1):
+            break
+    score._refine = (cand, starts)
     return score
 
 
-def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
-                     name: str = "<shots>") -> CandidateScore:
-    """Nonlinear fit of baseline + candidate from the best scan location (in place)."""
-    from .residuals import structure_tests
+def _close(a: dict, b: dict) -> bool:
+    """Two scan locations closer than what a nonlinear fit walks by itself."""
+    if a.get("shot") != b.get("shot"):
+        return False
+    if "t_s" in a:
+        return abs(a["t_s"] - b["t_s"]) < 1.0
+    if "y_start_m" in a:
+        return abs(a["y_start_m"] - b["y_start_m"]) < 1.0 and abs(a["y_end_m"] - b["y_end_m"]) < 1.0
+    return True
 
-    cand, E, loc, sub = score._refine
-    k, n = score.k, fit0.n
-    # coarse-to-fine: start the nonlinear fit at the best location with the linear sizes
+
+def _start_model(base, fit0, cand, E, loc, sub) -> JointModel:
+    """Baseline + candidate at scan location ``loc``, sizes from the linear solution."""
     coef, *_ = np.linalg.lstsq(np.column_stack([fit0.J, E]), fit0.r, rcond=None)
     m = JointModel(base.shots, base.baseline, cand)
     m.values.update(fit0.values)
@@ -197,13 +218,39 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
     dropped = [p.name for j, p in enumerate(cand.size) if j not in sub]
     m.free = [f for f in m.free if f not in dropped]
     if cand.name == "pick":
-        t_end = float(base.shots[loc["shot"]].t.max())
-        m.bounds["t_s"] = (0.0, t_end)
-    try:
-        fit1 = m.fit(max_nfev=FIT_MAX_NFEV, name=name, tol=FIT_TOL)
-    except CurltrackError as exc:
-        score.note += f"; nonlinear fit failed ({exc})"
+        m.bounds["t_s"] = (0.0, float(base.shots[loc["shot"]].t.max()))
+    return m
+
+
+def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
+                     name: str = "<shots>") -> CandidateScore:
+    """Nonlinear fit of baseline + candidate from the best scan locations (in place)."""
+    from .residuals import structure_tests
+
+    cand, starts = score._refine
+    n = fit0.n
+    best = None
+    for E, loc, sub, k in starts:
+        m = _start_model(base, fit0, cand, E, loc, sub)
+        try:
+            f = m.fit(max_nfev=START_NFEV if len(starts) > 1 else FIT_MAX_NFEV, name=name,
+                      tol=FIT_TOL)
+        except CurltrackError as exc:
+            score.note += f"; nonlinear fit failed ({exc})"
+            continue
+        if best is None or f.chi2 < best[0].chi2:
+            best = (f, m, loc, k)
+    if best is None:
         return score
+    fit1, m, loc, k = best
+    if len(starts) > 1:  # finish the best start
+        try:
+            fit1 = m.fit(max_nfev=FIT_MAX_NFEV, name=name, tol=FIT_TOL)
+        except CurltrackError as exc:
+            score.note += f"; nonlinear fit failed ({exc})"
+            return score
+    score.k = k
+    score.location = loc
     score.fit = fit1
     score.nfev = getattr(m, "nfev", None)
     score.delta_bic = float(fit0.chi2 - fit1.chi2 - k * np.log(n))
