@@ -104,7 +104,9 @@ def test_shots_csv_metadata_joined(tmp_path, client):
         "s2/v1.mp4,flooded,2003-01-03,B,\"swept, once\"\n"
         "missing.mp4,pebbled,2003-01-04,C,not in the folder\n")
     out = tmp_path / "out"
-    run_batch(tmp_path / "in", default_rig(), out, client=client, pipeline=standin_pipeline)
+    s = run_batch(tmp_path / "in", default_rig(), out, client=client,
+                  pipeline=standin_pipeline, report=True)
+    assert s.report_path == out / "report.html" and "3 fitted, 1 failed" in s.report_path.read_text()
     t = pd.read_parquet(out / "campaign.parquet").set_index("file")
     assert t.loc["v0.mp4", "ice_surface"] == "pebbled"
     assert t.loc["s2/v1.mp4", "ice_surface"] == "flooded"
