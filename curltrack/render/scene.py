@@ -290,6 +290,7 @@ def rock_sprites(rig: Rig, ppm: float, rng: np.random.Generator, pixel_m: float,
         ma = _disc(x, y, m.x_m, m.y_m, marker_diameter_m / 2, pixel_m)
         mcol = bgr(m.color) * (0.92 + 0.08 * lit[..., None])
         col = col * (1 - ma[..., None]) + mcol * ma[..., None]
+        a = np.maximum(a, ma)  # a marker stuck near the rim may overhang the top
     sprites.append(Sprite(_premul(col, a), ppm, h))
     # handle: through the axis, turned to stay as far as possible from every marker
     length, width = min(0.19, 1.3 * top_r), 0.035

@@ -142,3 +142,22 @@ def test_cli_render_and_its_errors(tmp_path):
         assert text in res.output and "Traceback" not in res.output
         assert len(res.output.strip().splitlines()) == 1
         assert not (tmp_path / "b.mp4").exists()
+
+
+def test_cli_initial_conditions_and_bad_rig(tmp_path):
+    runner = CliRunner()
+    video = tmp_path / "ic.mp4"
+    res = runner.invoke(app, ["render", "--v0", "0.4", "--omega0", "1.0", "-o", str(video),
+                              "--width", "320", "--height", "180", "--quiet"])
+    assert res.exit_code == 0, res.output
+    truth = read_series(tmp_path / "ic.truth.csv")
+    assert truth.meta["t_stop_translation"] > 0
+    assert truth.data["y"].iloc[-1] > 0.1  # it travelled along +y (within the skew)
+    bad = tmp_path / "bad.toml"
+    bad.write_text((tmp_path / "ic.rig.toml").read_text().replace("#ffd000", "#ffd00"))
+    res = runner.invoke(app, ["render", "--v0", "0.4", "--omega0", "1.0", "--rig", str(bad),
+                              "-o", str(tmp_path / "b.mp4"), "--quiet"])
+    assert res.exit_code == 1 and "bad.toml" in res.output and "colour" in res.output
+    assert "[[markers]][0].color" in res.output
+    res = runner.invoke(app, ["render", "-o", str(tmp_path / "b.mp4")])
+    assert res.exit_code == 2
