@@ -89,10 +89,10 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
         if f["supported"]:
             supported.append((sc, f))
     verdict, unexplained = "none", None
-    best_fit, best_model_name = fit0, None
+    best_fit, best_model_name, best_params = fit0, None, {}
     if supported:
         sc, f = max(supported, key=lambda p: p[0].delta_bic)
-        best_fit, best_model_name = sc.fit, sc.name
+        best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
         if sc.structure_after.structured:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name)
@@ -138,7 +138,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
                    "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
         "warnings": [w for s in shots for w in s.warnings],
         "_plot": {"shots": shots, "model": base, "fit0": fit0, "fit1": best_fit,
-                  "extended": best_model_name},
+                  "extended": best_model_name, "params": best_params},
     }
     return report
 
@@ -194,6 +194,7 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
             bot.set_ylabel(f"residual {c} ({unit[c]})")
             if len(t) == 0:
                 top.text(0.5, 0.5, "not used", transform=top.transAxes, ha="center")
+            _mark_effect(top, bot, ext, p.get("params", {}), s, fit1.predictions[j], j)
         axes[2 * j, 0].set_title(str(s.name).split("/")[-1], loc="left", fontsize=9)
         axes[2 * j, 0].legend(fontsize=7, loc="best")
         axes[2 * j + 1, 0].legend(fontsize=7, loc="best")
@@ -204,3 +205,16 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110)
     plt.close(fig)
+
+
+def _mark_effect(top, bot, ext, params, shot, pred, j):
+    """Shade where the named effect acts: a patch's stretch (in time), a pick's instant."""
+    if ext == "friction_patch":
+        inside = (pred["y"] >= params["y_start_m"]) & (pred["y"] < params["y_end_m"])
+        if inside.any():
+            t_in = shot.t[inside]
+            for ax in (top, bot):
+                ax.axvspan(t_in.min(), t_in.max(), color="C2", alpha=0.12, lw=0)
+    elif ext == "pick" and int(params.get("shot", 0)) == j:
+        for ax in (top, bot):
+            ax.axvline(params["t_s"], color="C2", lw=1, ls=":")

@@ -7,15 +7,13 @@ import numpy as np
 import pytest
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("seed", [0, 1])
-def test_video_with_hidden_patch_is_found(tmp_path, seed):
+def _tracked(tmp_path, seed, effects):
+    """Simulate a short shot (fits the rendered field of view), render, track."""
     render = pytest.importorskip("curltrack.render")
     track = pytest.importorskip("curltrack.track")
     if not hasattr(track, "track_video") or not hasattr(render, "render_video"):
         pytest.skip("tracking or rendering not available")
-    from curltrack.discover import discover
-    from curltrack.physics import Effect, ShotModel
+    from curltrack.physics import ShotModel
     from curltrack.rig import default_rig
     from curltrack.simulate import simulate_series
 
@@ -23,15 +21,34 @@ def test_video_with_hidden_patch_is_found(tmp_path, seed):
     rig = default_rig()
     model = ShotModel(v0=float(rng.uniform(1.1, 1.3)), omega0=float(rng.choice([-1, 1]) * 1.5),
                       phi_y=-0.2, alpha_y=0.03, a_T=0.01)
-    y_a = float(rng.uniform(0.8, 1.2))
-    patch = {"y_start_m": y_a, "y_end_m": y_a + 0.8, "factor": 1.4}
-    sim = simulate_series(model, [Effect("friction_patch", patch)], fps=30)
-    video = tmp_path / "patch.mp4"
+    sim = simulate_series(model, effects, fps=30)
+    video = tmp_path / "shot.mp4"
     render.render_video(sim, rig, video, tmp_path / "truth.csv", seed=seed)
-    tracked = track.track_video(video, rig)
+    return track.track_video(video, rig)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [0, 1])
+def test_video_with_hidden_patch_is_found(tmp_path, seed):
+    from curltrack.discover import discover
+    from curltrack.physics import Effect
+
+    y_a = float(np.random.default_rng(100 + seed).uniform(0.8, 1.2))
+    patch = {"y_start_m": y_a, "y_end_m": y_a + 0.8, "factor": 1.4}
+    tracked = _tracked(tmp_path, seed, [Effect("friction_patch", patch)])
     rep = discover(tracked, seed=seed)
     assert rep["verdict"] == "friction_patch", [(f["effect"], f["delta_bic"])
                                                 for f in rep["findings"]]
     f = next(f for f in rep["findings"] if f["effect"] == "friction_patch")
     mid = 0.5 * (f["params"]["y_start_m"] + f["params"]["y_end_m"])
     assert abs(mid - 0.5 * (patch["y_start_m"] + patch["y_end_m"])) < 0.5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [5, 6])
+def test_clean_tracked_video_gives_none(tmp_path, seed):
+    """No false discovery on rendered-and-tracked video (correlated tracking noise)."""
+    from curltrack.discover import discover
+
+    rep = discover(_tracked(tmp_path, seed, []), seed=seed)
+    assert rep["verdict"] == "none", [(f["effect"], f["delta_bic"]) for f in rep["findings"]]
