@@ -69,6 +69,10 @@ class Calibration(PlaneMap):
     colors_resolved : bool
         Whether the thread colour sequence was identified (fixes the cell index modulo
         the number of colours).
+    n_colors : int
+    color_signs : (int, int)
+        Direction of the colour sequence along +x and +y of the lattice frame: thread
+        ``i`` has colour ``(sign * i) mod n_colors``.
     thread_width_px : float
         Weighted RMS width of thread pixels about their line (px).
     camera_height_m : float or None
@@ -89,6 +93,7 @@ class Calibration(PlaneMap):
     colour_model: ColourModel
     colors_resolved: bool = False
     n_colors: int = 0
+    color_signs: tuple = (1, 1)
     thread_width_px: float = 1.0
     camera_height_m: float | None = None
     notes: list = field(default_factory=list)
@@ -106,6 +111,7 @@ class Calibration(PlaneMap):
             "residual_px": self.residual_px, "thread_width_px": self.thread_width_px,
             "colour_model": self.colour_model.to_dict(),
             "colors_resolved": self.colors_resolved, "n_colors": self.n_colors,
+            "color_signs": list(self.color_signs),
             "camera_height_m": self.camera_height_m, "notes": list(self.notes),
         }
 
@@ -120,6 +126,7 @@ class Calibration(PlaneMap):
                    colour_model=ColourModel.from_dict(d["colour_model"]),
                    colors_resolved=bool(d.get("colors_resolved", False)),
                    n_colors=int(d.get("n_colors", 0)),
+                   color_signs=tuple(int(v) for v in d.get("color_signs", (1, 1))),
                    thread_width_px=float(d.get("thread_width_px", 1.0)),
                    camera_height_m=d.get("camera_height_m"), notes=list(d.get("notes", [])))
 
@@ -163,14 +170,27 @@ def line_colours(contrast, xs, ab, fam, idx, col, model: ColourModel):
     return out
 
 
-def colour_phase(colours: dict, n: int):
-    """Phase p (thread i has colour (i - p) mod n) and the fraction of threads agreeing."""
+def colour_phase(colours: dict, n: int, sign: int | None = None):
+    """Phase and direction of the colour sequence over a family's threads.
+
+    Thread ``i`` has colour ``(sign * (i - p)) mod n``: the rig lists the colours in the
+    order they repeat, but which way the lattice index runs is not known in advance.
+
+    Returns
+    -------
+    p, agree, sign : int, float, int
+        Phase, fraction of threads agreeing, direction (+1 / -1; the given one if any).
+    """
     if n < 2 or len(colours) < 2:
-        return 0, 0.0
-    ids = np.array(list(colours)), np.array(list(colours.values()))
-    agree = [np.mean((ids[0] - p) % n == ids[1]) for p in range(n)]
-    p = int(np.argmax(agree))
-    return p, float(agree[p])
+        return 0, 0.0, 1 if sign is None else sign
+    i, c = np.array(list(colours)), np.array(list(colours.values()))
+    best = (-1.0, 0, 1)
+    for sg in ((1, -1) if sign is None else (sign,)):
+        for p in range(n):
+            a = float(np.mean((sg * (i - p)) % n == c))
+            if a > best[0] + 1e-9:
+                best = (a, p, sg)
+    return best[1], best[0], best[2]
 
 
 def _check_period(xs, w, Hc, K, dist, family: int):
@@ -178,8 +198,11 @@ def _check_period(xs, w, Hc, K, dist, family: int):
     f, c = K[0, 0], K[:2, 2]
     ab = apply_h(Hc, (undistort(xs, K, dist) - c) / f)
     frac = ab[:, family] - np.floor(ab[:, family])
-    on = np.sum(w[(frac < 0.08) | (frac > 0.92)])
-    mid = np.sum(w[np.abs(frac - 0.5) < 0.08])
+    other = ab[:, 1 - family] - np.round(ab[:, 1 - family])
+    p_other = periods_px(Hc, f)[1 - family]
+    away = np.abs(other) * p_other > 4.0  # pixels of the other family's threads excluded
+    on = np.sum(w[away & ((frac < 0.08) | (frac > 0.92))])
+    mid = np.sum(w[away & (np.abs(frac - 0.5) < 0.08)])
     return mid > 0.35 * on
 
 
@@ -218,7 +241,7 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
     xs, wt = candidate_pixels(resp, mask)
     if len(xs) < 200:
         raise TrackingError("no grid found: almost no thread-like pixels in the frame")
-    A = initial_lattice(resp, xs, wt, c)
+    A = initial_lattice(resp, xs, wt, c, rig.spacing_x_m / rig.spacing_y_m)
     if A is None:
         raise TrackingError("no grid found: no two periodic thread families in the frame")
     Hc = np.array([[A[0, 0] * f, A[0, 1] * f, A[0, 2]], [A[1, 0] * f, A[1, 1] * f, A[1, 2]],
@@ -274,12 +297,14 @@ def _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info) -> Calibrat
     fam_a, fam_b, ia, ib = assign_families(ab[:, 0], ab[:, 1], pa, pb, 2.5, 3.5)
     n = len(rig.grid_colors)
     resolved = False
+    signs = (1, 1)
     ab0 = apply_h(Hc, np.zeros((1, 2)))[0]
     shift = np.round(ab0)
     if model.directions is not None and n >= 2:
         ca = line_colours(contrast, xs, ab, fam_a, ia, 0, model)
         cb = line_colours(contrast, xs, ab, fam_b, ib, 1, model)
-        (p_a, agree_a), (p_b, agree_b) = colour_phase(ca, n), colour_phase(cb, n)
+        (p_a, agree_a, s_a), (p_b, agree_b, s_b) = colour_phase(ca, n), colour_phase(cb, n)
+        signs = (s_a, s_b)
         resolved = min(agree_a, agree_b) >= 0.8 and min(len(ca), len(cb)) >= n + 1
         if resolved:
             # origin index congruent to the phase, nearest the image centre
@@ -300,4 +325,5 @@ def _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info) -> Calibrat
         n_threads=(info["lines_a"], info["lines_b"]) if x_is_a else (info["lines_b"],
                                                                       info["lines_a"]),
         residual_px=lines["rms_px"], colour_model=model, colors_resolved=bool(resolved),
-        n_colors=n, thread_width_px=float(info["rms_px"]), notes=notes)
+        n_colors=n, color_signs=tuple(int(v) for v in signs),
+        thread_width_px=float(info["rms_px"]), notes=notes)

@@ -39,7 +39,8 @@ def _fundamental_period(rel, w, normal, min_period, max_period):
 
     The weighted histogram of the pixels' positions along the normal (0.5 px bins) of a
     set of parallel threads is periodic; its autocorrelation peaks at the period and its
-    multiples.  Returns None without a clear peak.
+    multiples.  Returns (period, normalised autocorrelation there), or None without a
+    clear peak.
     """
     s = rel @ normal
     lo, hi = s.min(), s.max()
@@ -65,7 +66,7 @@ def _fundamental_period(rel, w, normal, min_period, max_period):
             # parabolic sub-bin refinement
             den = ac[i - 1] - 2 * ac[i] + ac[i + 1]
             d = 0.5 * (ac[i - 1] - ac[i + 1]) / den if den < 0 else 0.0
-            return float((i + d) * 0.5)
+            return float((i + d) * 0.5), float(ac[i] / ac[0])
     return None
 
 
@@ -88,7 +89,7 @@ def _refine_wavevector(xs, w, k, n_steps: int = 5):
     return k, float(np.angle(z) / (2 * np.pi))
 
 
-def initial_lattice(resp, xs, w, centre):
+def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
     """Affine first guess of the lattice from the response's spectrum.
 
     Parameters
@@ -99,6 +100,9 @@ def initial_lattice(resp, xs, w, centre):
         Candidate thread pixels (distorted px) and weights.
     centre : (2,)
         Image centre (px).
+    cell_ratio : float
+        spacing_x / spacing_y of the rig: the two families' periods (px) must have about
+        this ratio (either way round).
 
     Returns
     -------
@@ -114,27 +118,52 @@ def initial_lattice(resp, xs, w, centre):
     fy, fx = np.meshgrid(np.fft.fftshift(np.fft.fftfreq(h)), np.fft.fftshift(np.fft.fftfreq(wd)),
                          indexing="ij")
     fr = np.hypot(fx, fy)
-    min_period, max_period = 6.0, min(h, wd) / 3.0
+    # 10 px: below it threads are unresolvable, and JPEG blocking is periodic at 8 px
+    min_period, max_period = 10.0, min(h, wd) / 3.0
     mag[(fr > 1 / min_period) | (fr < 1 / max_period) | (fy < 0) | ((fy == 0) & (fx < 0))] = 0
     if mag.max() <= 0:
         return None
     bg = np.median(mag[mag > 0])
-    k1, m1 = _spectrum_peak(mag, fx, fy)
-    k2, m2 = _spectrum_peak(mag, fx, fy, exclude_dir=k1)
-    if m1 < 8 * bg or m2 < 8 * bg:
-        return None
     rel = xs - centre
     near = np.hypot(*rel.T) < 0.3 * min(h, wd)
     if near.sum() < 50:
         near = np.ones(len(xs), bool)
-    rows = []
-    for k in (k1, k2):
+    # Candidate directions: the strongest spectral peaks.  Each is judged by how periodic
+    # the thread pixels are across it (image artefacts such as compression blocks have
+    # spectral peaks too, but not a clean periodic stack of lines).
+    from scipy.ndimage import maximum_filter
+
+    peaks = (mag == maximum_filter(mag, size=5)) & (mag > 8 * bg)
+    order = np.argsort(mag[peaks])[::-1][:12]
+    cand = np.column_stack([fx[peaks], fy[peaks]])[order]
+    found = []
+    for k in cand:
         normal = k / np.linalg.norm(k)
-        period = _fundamental_period(rel[near], w[near], normal, min_period, max_period)
-        if period is None:
-            period = _fundamental_period(rel, w, normal, min_period, max_period)
-        if period is None:
-            return None
+        if any(abs(abs(normal @ n) - 1.0) < 1e-9 for n, _, _ in found):
+            continue
+        res = _fundamental_period(rel[near], w[near], normal, min_period, max_period)
+        if res is None:
+            res = _fundamental_period(rel, w, normal, min_period, max_period)
+        if res is not None:
+            found.append((normal, res[0], res[1]))
+    if not found:
+        return None
+    # The best pair: nearly perpendicular (a rectangular lattice seen from above) with the
+    # period ratio of the rig's cell (perspective and tilt change it by a few per cent).
+    best, pair = -np.inf, None
+    for i, c1 in enumerate(found):
+        for c2 in found[i + 1:]:
+            ang = np.degrees(np.arccos(min(abs(c1[0] @ c2[0]), 1.0)))
+            ratio = c1[1] / c2[1]
+            if ang < 60.0 or not any(abs(np.log(ratio / r)) < 0.2 for r in
+                                     (cell_ratio, 1.0 / cell_ratio)):
+                continue
+            if c1[2] + c2[2] > best:
+                best, pair = c1[2] + c2[2], (c1, c2)
+    if pair is None:
+        return None
+    rows = []
+    for normal, period, _ in pair:
         k, s = _refine_wavevector(rel[near], w[near], normal / period)
         rows.append([k[0], k[1], -s])
     return np.array(rows)
@@ -343,9 +372,15 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
         pa, pb = periods_px(Hc, f)
         r = _residuals(Hc, q, fam_a, fam_b, ia, ib, pa, pb)
         ww = np.concatenate([w[fam_a], w[fam_b]])
-        mad = 1.4826 * np.median(np.abs(r))
-        scale = max(clip_px, 4.5 * mad)
-        ww = ww * np.clip(1 - (r / scale) ** 2, 0, None) ** 2
+        # Tukey weights about each family's median residual (a common shift of a family
+        # is the correction sought, not an outlier), scale from the MAD
+        na = int(fam_a.sum())
+        for part in (slice(0, na), slice(na, None)):
+            rp = r[part]
+            if rp.size:
+                med = np.median(rp)
+                scale = max(clip_px, 4.5 * 1.4826 * np.median(np.abs(rp - med)))
+                ww[part] *= np.clip(1 - ((rp - med) / scale) ** 2, 0, None) ** 2
         J = _h_jacobian(Hc, q, fam_a, fam_b, pa, pb)
         JW = J * ww[:, None]
         A = J.T @ JW

@@ -18,6 +18,18 @@ import numpy as np
 from .lens import apply_h, distort
 
 
+BOX = 0.25
+
+
+def _box(a, k):
+    """Moving average of width ``k`` samples along axis 1 (same length, edges shrink)."""
+    c = np.cumsum(np.pad(a, ((0, 0), (1, 0))), axis=1)
+    n = a.shape[1]
+    lo = np.clip(np.arange(n) - k // 2, 0, n)
+    hi = np.clip(np.arange(n) + (k - k // 2), 0, n)
+    return (c[:, hi] - c[:, lo]) / (hi - lo)
+
+
 def _lattice_to_px(Hc_inv, K, dist, ab):
     q = apply_h(Hc_inv, ab)
     return distort(K[:2, 2] + K[0, 0] * q, K, dist)
@@ -25,7 +37,7 @@ def _lattice_to_px(Hc_inv, K, dist, ab):
 
 def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0,
                    mask=None, colors_known: bool = False, margin_px: float = 3.0,
-                   gap_px=(4.0, 4.0)):
+                   gap_px=(4.0, 4.0), blur_px=(0.0, 0.0), seg_px: float = 40.0):
     """Sub-pixel thread points of a frame near the predicted lattice ``Hc``.
 
     Parameters
@@ -45,6 +57,13 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     gap_px : (float, float)
         No profile closer than this (px) to a thread of family A / B crossing it
         (thread width plus motion blur).
+    blur_px : (float, float)
+        Expected motion-blur length across the threads of family A / B (px): the
+        profiles are smoothed by a box this long (a matched filter for the smeared,
+        ghosted copies of a thread that a moving camera records).
+    seg_px : float
+        Length (px) of thread over which consecutive profiles are averaged into one
+        point (longer in proportion to the blur).
     mask : (H, W) uint8, optional
         Nonzero = ignore.
     colors_known : bool
@@ -93,6 +112,7 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     ab = np.concatenate(pts)
     fam = np.concatenate(fams)
     idx = np.concatenate(idxs).astype(int)
+    along = np.where(fam == 0, ab[:, 1], ab[:, 0])
     centre = _lattice_to_px(Hc_inv, K, dist, ab)
     eps = np.zeros_like(ab)
     eps[fam == 0, 0] = 0.02
@@ -108,7 +128,8 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         ci = np.clip(ci, 0, [w - 1, h - 1])
         ok_idx &= mask[ci[:, 1], ci[:, 0]] == 0
         inside = ok_idx
-    centre, dirv, fam, idx, half = centre[inside], dirv[inside], fam[inside], idx[inside], half[inside]
+    centre, dirv, fam, idx, half, along = (centre[inside], dirv[inside], fam[inside],
+                                           idx[inside], half[inside], along[inside])
     if len(centre) == 0:
         return None
     n_s = int(np.ceil(max(half_px))) * 2 + 1
@@ -129,25 +150,72 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
             sig = proj_all[np.arange(len(idx)), :, idx % model.directions.shape[0]]
         else:
             sig = np.maximum.reduce([proj_all[:, :, i] for i in range(proj_all.shape[2])])
-    sig = np.maximum(sig, 0.0)
-    peak = sig.max(axis=1)
-    kpk = sig.argmax(axis=1)
-    # centroid of the contiguous run above 30 % of the peak that contains the peak
-    above = sig >= 0.3 * peak[:, None]
+    # Average consecutive profiles of a thread over segments (longer when blurred: a
+    # smeared thread is faint in any one profile but straight over a long stretch).
+    # (a thread smeared over more than a few px is too faint for short segments: whole
+    # visible threads then)
+    seg_cells = np.array([(seg_px if blur_px[j] < 6.0 else 1e6) / p_cell[1 - j]
+                          for j in (0, 1)])
+    seg = np.floor(along / seg_cells[fam]).astype(np.int64)
+    key = (fam.astype(np.int64) << 40) + ((idx.astype(np.int64) + (1 << 19)) << 20) \
+        + (seg - seg.min())
+    order = np.argsort(key, kind="stable")
+    key_s = key[order]
+    starts = np.nonzero(np.r_[True, key_s[1:] != key_s[:-1]])[0]
+    counts = np.diff(np.r_[starts, len(key_s)])
+    first = order[starts]
+
+    def group(a):
+        return np.add.reduceat(a[order], starts, axis=0)
+
+    sig = group(sig) / counts[:, None]
+    mid = order[starts + counts // 2]  # a profile on the (curved) thread, mid-segment
+    centre, dirv = centre[mid], dirv[mid]
+    proj_g = None if proj_all is None else group(proj_all)
+    fam, idx, t = fam[first], idx[first], t[first]
+    # Find the thread on a copy smoothed by the blur length (merges the ghosts of a
+    # smeared thread), take the centroid of the unsmoothed signal over the run found.
+    det = sig.copy()
+    for j in (0, 1):
+        rows = fam == j
+        if not rows.any():
+            continue
+        dtj = 2.0 * half_px[j] / (n_s - 1)
+        k = int(round(BOX * blur_px[j] / dtj))
+        if k >= 2:
+            det[rows] = _box(sig[rows], k)
+    peak = det.max(axis=1)
+    kpk = det.argmax(axis=1)
+    # the contiguous run above 30 % of the peak that contains the peak
+    above = det >= 0.3 * peak[:, None]
     run = np.cumsum(~above, axis=1)
     keep = above & (run == run[np.arange(len(kpk)), kpk][:, None])
-    s = np.where(keep, sig - 0.3 * peak[:, None], 0.0)
-    area = s.sum(axis=1)
-    off = (s * t).sum(axis=1) / np.maximum(area, 1e-9)
-    noise = float(np.median(np.abs(diff[:, :2] - diff[:, :2].mean(axis=1, keepdims=True))) * 1.4826
-                  + 1e-3)
+    # noise of the detection signal away from the run found (and from the window ends,
+    # which define the baseline)
+    away = _box(keep.astype(np.float32), max(3, min(9, n_s // 4))) == 0
+    away[:, :2] = away[:, -2:] = False
+    # (windows too short to see background beside the thread: no noise criterion; the
+    # relative one below still drops occluded and empty stretches)
+    noise = np.zeros(2)
+    rel_floor = np.zeros(2)
+    for j in (0, 1):
+        dj = det[fam == j]
+        if dj.size:
+            aj = away[fam == j]
+            if aj.sum() > 0.1 * aj.size:
+                noise[j] = 1.4826 * np.median(np.abs(dj[aj])) + 1e-3
+            rel_floor[j] = 0.25 * np.median(dj.max(axis=1))
+    det = np.maximum(det, 0.0)
+    sig = np.maximum(sig, 0.0)
+    floor = 0.3 * sig.max(axis=1, where=keep, initial=0.0)
+    s = np.where(keep, np.maximum(sig - floor[:, None], 0.0), 0.0)
+    area = s.sum(axis=1) * counts
+    off = (s * t).sum(axis=1) / np.maximum(s.sum(axis=1), 1e-9)
     edge_peak = (kpk <= 1) | (kpk >= n_s - 2)
-    good = (peak > 4.0 * noise) & ~edge_peak
+    sel = (peak > np.maximum(4.0 * noise, rel_floor)[fam]) & ~edge_peak
     xy = centre + off[:, None] * dirv
-    colour = None
-    if proj_all is not None:
-        colour = proj_all[np.arange(len(kpk)), kpk]
-    sel = good
+    colour = None if proj_g is None else proj_g[np.arange(len(kpk)), kpk]
+    noise = float(np.max(noise))
     return {"xy": xy[sel], "w": area[sel], "fam": fam[sel], "idx": idx[sel],
             "colour": None if colour is None else colour[sel], "noise": noise,
             "n_profiles": int(len(sel)),

@@ -20,10 +20,10 @@ from .lattice import fit_points, periods_px
 from .profiles import sample_threads
 from .lens import apply_h, undistort
 
-MAX_PIXELS = 40_000  # thread pixels used per frame (a fixed subsample beyond this)
-AMBIGUOUS_CELLS = 0.35
+AMBIGUOUS_CELLS = 0.35  # unexplained jump (cells) beyond which the index is not trusted
 PROFILE_STEP_PX = 14.0  # spacing of the cross profiles along each thread (px)
-COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap  # unexplained jump (cells) beyond which the index is not trusted
+COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap
+SHUTTER = 0.5  # assumed exposure (fraction of a frame) for the motion-blur filter
 
 
 @dataclass
@@ -77,14 +77,11 @@ class GridTracker:
         From :func:`calibrate_frame` on (ideally) the first frame tracked.
     rig : Rig
         For the thread spacings and colours.
-    max_pixels : int
-        Thread pixels used per frame.
     """
 
-    def __init__(self, calib: Calibration, rig, max_pixels: int = MAX_PIXELS):
+    def __init__(self, calib: Calibration, rig):
         self.calib = calib
         self.rig = rig
-        self.max_pixels = int(max_pixels)
         self.K = calib.K
         self.dist = tuple(calib.dist)
         self.sx, self.sy = calib.spacing_x_m, calib.spacing_y_m
@@ -109,11 +106,12 @@ class GridTracker:
         return cv2.getPerspectiveTransform(self._ref.astype(np.float32),
                                            P.astype(np.float32)).astype(float)
 
-    def _motion_px(self, H_pred) -> np.ndarray:
-        """Predicted image motion (px) of the ice at the image centre since the last pose."""
+    def _motion_px(self, H_pred, index) -> np.ndarray:
+        """Predicted image motion (px per frame) of the ice at the image centre."""
         c = self.K[:2, 2][None]
-        prev = self._history[-1][1]
-        return (apply_h(np.linalg.inv(H_pred), apply_h(prev, c)) - c)[0]
+        i1, prev = self._history[-1]
+        gap = 1 if i1 is None else max(index - i1, 1)
+        return (apply_h(np.linalg.inv(H_pred), apply_h(prev, c)) - c)[0] / gap
 
     # -- per frame -------------------------------------------------------------------
     def _measure(self, image_bgr, Hc_pred, mask, motion, coarse: bool):
@@ -126,12 +124,13 @@ class GridTracker:
         J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])
         normals = J / np.linalg.norm(J, axis=1, keepdims=True)
         blur = np.abs(normals @ motion)  # px of motion across each family per frame
-        gap = 4.0 + 0.5 * blur
+        gap = np.array([5.0, 5.0])  # thread width + prediction error; blur runs along them
         if coarse:
             # Sparse profiles spanning almost a whole cell find the nearest alignment.
             half = [0.45 * p for p in periods_px(Hc, f)]
             obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model,
-                                 half, step_px=COARSE_STEP_PX, mask=mask, gap_px=gap)
+                                 half, step_px=COARSE_STEP_PX, mask=mask, gap_px=gap,
+                                 blur_px=SHUTTER * blur)
             if obs is None or np.sum(obs["fam"] == 0) < 6 or np.sum(obs["fam"] == 1) < 6:
                 return Hc, None, obs
             Hc, _ = fit_points(obs["xy"], obs["w"], obs["fam"], obs["idx"], Hc, self.K,
@@ -140,7 +139,8 @@ class GridTracker:
         base = 5.0 if coarse else 8.0
         half = [min(base + 0.5 * blur[j], 0.4 * p) for j, p in enumerate(periods_px(Hc, f))]
         obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model, half,
-                             step_px=PROFILE_STEP_PX, mask=mask, gap_px=gap + base - 3.0)
+                             step_px=PROFILE_STEP_PX, mask=mask, gap_px=gap,
+                             blur_px=SHUTTER * blur)
         if obs is None or np.sum(obs["fam"] == 0) < 10 or np.sum(obs["fam"] == 1) < 10:
             return Hc, None, obs
         Hc, info = fit_points(obs["xy"], obs["w"], obs["fam"], obs["idx"], Hc, self.K,
@@ -173,7 +173,7 @@ class GridTracker:
         def failed(msg):
             return GridPose(index, False, msg, H_pred, K, dist)
 
-        motion = self._motion_px(H_pred)
+        motion = self._motion_px(H_pred, index)
         smooth = (len(self._history) >= 2 and self._history[-2][0] is not None
                   and self._pred_err_px < 4.0)
         for attempt in ((False, True) if smooth else (True,)):
@@ -191,7 +191,7 @@ class GridTracker:
             return failed("grid not visible (fewer than 2 threads in a family)")
         jump = apply_h(Hc, np.zeros((1, 2)))[0] - apply_h(Hc_pred, np.zeros((1, 2)))[0]
         n = self.calib.n_colors if self.calib.colors_resolved else 0
-        k, note = self._colour_correction(obs, jump, n)
+        k, note, ambiguous = self._colour_correction(obs, jump, n)
         Hc = np.array([[1.0, 0, k[0]], [0, 1.0, k[1]], [0, 0, 1]]) @ Hc
         jump = jump + k
         H = metric_from_cells(Hc, K, self.sx, self.sy)
@@ -200,6 +200,10 @@ class GridTracker:
                         residual_px=info["rms_px"],
                         n_threads=int(info["lines_a"] + info["lines_b"]),
                         sigma_px=info["sigma_px"], jump_cells=(float(jump[0]), float(jump[1])))
+        if ambiguous:
+            pose.ok = False
+            pose.message = "cell index ambiguous: " + note
+            return pose
         if np.max(np.abs(jump)) > AMBIGUOUS_CELLS and not note:
             pose.ok = False
             pose.message = (f"cell index ambiguous: the grid moved {np.max(np.abs(jump)):.2f} "
@@ -211,23 +215,34 @@ class GridTracker:
         return pose
 
     def _colour_correction(self, obs, jump, n):
-        """Integer cell shift (cells) that makes the thread colours match the sequence."""
+        """Integer cell shift (cells) that makes the thread colours match the sequence.
+
+        Returns (shift, note, ambiguous): ambiguous when the colours say the index is off
+        but two shifts explain the motion about equally well.
+        """
         if n < 2 or obs["colour"] is None:
-            return np.zeros(2), ""
+            return np.zeros(2), "", False
         k = np.zeros(2)
         notes = []
+        ambiguous = False
         for j in (0, 1):
             sel = obs["fam"] == j
             ids = obs["idx"][sel]
             cols = {}
             for i in np.unique(ids):
                 cols[int(i)] = int(np.argmax(obs["colour"][sel][ids == i].sum(axis=0)))
-            p, agree = colour_phase(cols, n)
+            p, agree, _ = colour_phase(cols, n, sign=self.calib.color_signs[j])
             if agree < 0.8 or len(cols) < n + 1 or p == 0:
                 continue
-            cands = np.array([-p, n - p, -p - n, 2 * n - p])
-            best = cands[np.argmin(np.abs(jump[j] + cands))]
-            k[j] = best
-            notes.append(f"{'xy'[j]} cell index corrected by {int(best):+d} from the thread "
+            cands = np.array([-p + m * n for m in (-1, 0, 1, 2)])
+            cost = np.abs(jump[j] + cands)
+            o = np.argsort(cost)
+            if cost[o[1]] - cost[o[0]] < 0.3:
+                ambiguous = True
+                notes.append(f"{'xy'[j]} cell index off by the thread colours, but by "
+                             f"{int(cands[o[0]]):+d} or {int(cands[o[1]]):+d}")
+                continue
+            k[j] = cands[o[0]]
+            notes.append(f"{'xy'[j]} cell index corrected by {int(k[j]):+d} from the thread "
                          "colours")
-        return k, "; ".join(notes)
+        return k, "; ".join(notes), ambiguous

@@ -23,3 +23,49 @@ def align(est, truth, sx, sy, free_offset=False):
         if best is None or rms < best[0]:
             best = (rms, err, k)
     return best
+
+
+def short_shot(v0=3.0, seconds=1.2, fps=30.0, omega0=1.5, lam=1.9, t_F=10.0):
+    """The first ``seconds`` of a closed-form draw with initial speed ``v0`` (m/s)."""
+    from curltrack.physics.closed_form import decel_position
+    from curltrack.series import Series, make_meta
+    import pandas as pd
+
+    t = np.arange(int(round(seconds * fps)) + 1) / fps
+    y = decel_position(t, v0 * t_F / lam, lam, t_F)
+    theta = decel_position(t, omega0 * t_F / lam, lam, t_F)
+    data = pd.DataFrame(dict(frame=np.arange(len(t)), t=t, x=np.zeros_like(t), y=y,
+                             theta=theta, ok=1))
+    return Series(data, make_meta(fps, len(t)))
+
+
+def rock_mask(shape, u, v, radius_px):
+    """uint8 mask (nonzero = ignore) of a disc around the rock."""
+    import cv2
+
+    m = np.zeros(shape[:2], np.uint8)
+    cv2.circle(m, (int(round(u)), int(round(v))), int(np.ceil(radius_px)), 255, -1)
+    return m
+
+
+def track_rendered(video, truth, rig, mask=True):
+    """Calibrate on frame 0, follow the grid; return (ice points of the true rock centre
+    through each pose (N, 2), ok flags (N,), poses)."""
+    from curltrack.calib import GridTracker, calibrate_frame
+    from curltrack.video import iter_frames
+
+    tracker, est, oks, poses = None, [], [], []
+    for fr in iter_frames(video):
+        row = truth.iloc[fr.index]
+        if tracker is None:
+            cal = calibrate_frame(fr.image, rig)
+            tracker = GridTracker(cal, rig)
+        m = None
+        if mask:
+            r_px = 0.5 * rig.rock_diameter_m / cal.metres_per_px() * 1.3
+            m = rock_mask(fr.image.shape, row.u_top_px, row.v_top_px, r_px)
+        pose = tracker.update(fr.image, fr.index, m)
+        est.append(pose.image_to_ice([[row.u_px, row.v_px]])[0])
+        oks.append(pose.ok)
+        poses.append(pose)
+    return np.array(est), np.array(oks), poses
