@@ -1,7 +1,7 @@
 """Synthetic overhead video of a shot, with its ground truth (``curltrack render``).
 
 Pipeline: :mod:`~.trajectory` (the series placed on the ice; the truth frame) ->
-:mod:`~.motion` (how the camera is held) -> :mod:`~.scene` (ice, threads, rock, broom,
+:mod:`~.motion` (how the camera is held) -> :mod:`~.ice` and :mod:`~.sprites` (ice, threads, rock, broom,
 pre-rendered once) -> :mod:`~.compositor` (per-frame warps, blur, distortion, noise) ->
 :mod:`~.production` (one rendering set up, frames streamed) -> :mod:`~.video` (the mp4
 and the truth files).  Pixel and world conventions: :mod:`curltrack.render.camera`.
@@ -11,7 +11,7 @@ from .camera import Camera
 from .config import RenderConfig
 from .motion import CameraConfig, CameraPath
 from .production import FrameInfo, Production
-from .scene import IceStyle
+from .ice import IceStyle
 from .video import render_video
 from .benchmark import render_benchmark
 

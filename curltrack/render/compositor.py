@@ -12,7 +12,8 @@ import cv2
 import numpy as np
 
 from .camera import Camera
-from .scene import Sprite, Texture
+from .ice import Texture
+from .sprites import Sprite
 
 
 def _translate(dx: float, dy: float) -> np.ndarray:

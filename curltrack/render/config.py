@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import ParameterError, RigError
 from ..rig import parse_color
 from .motion import CameraConfig
-from .scene import IceStyle
+from .ice import IceStyle
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,8 @@ from .camera import Camera
 from .compositor import Compositor, pose_matrix
 from .config import RenderConfig
 from .motion import CameraPath
-from .scene import N_ICE, broom_sprite, ice_texture, rock_sprites
+from .ice import N_ICE, ice_texture
+from .sprites import broom_sprite, rock_sprites
 from .trajectory import Trajectory, truth_table
 
 BROOM_ABOVE_TOP_M = 0.2  # the broom head passes this far above the rock's top
