@@ -25,11 +25,15 @@ def discover(
                                       help="paper (mu = alpha v^phi) or dry (phi = 0)."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Figure (PNG) to write."),
     seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
+    rig: Optional[Path] = typer.Option(None, "--rig",
+                                       help="Rig TOML: the rock's R and r (defaults otherwise)."),
 ):
     """What the simulation gets wrong in measured shots, its named cause, the extended
     model and its gain (delta-BIC, held-out error, residual tests)."""
     from ..discover import discover as run, write_report
+    from ..rig import load_rig
 
-    report = run([str(p) for p in shots], baseline=baseline.value, seed=seed)
+    report = run([str(p) for p in shots], baseline=baseline.value, seed=seed,
+                 rig=load_rig(rig) if rig is not None else None)
     write_report(report, output, plot)
     typer.echo(f"verdict: {report['verdict']}  ({output})")

@@ -6,6 +6,7 @@ import numpy as np
 
 from .._atomic import atomic_path, write_json
 from .residuals import binned_means
+from .scoring import bic
 from .shots import COORDS
 
 
@@ -44,7 +45,7 @@ def _evidence(sc, h0) -> str:
                 f"look-elsewhere threshold {thr['threshold']:.1f} "
                 f"({thr['level']:.0%} false alarms, {thr['n_boot']} bootstrap replicates)")
     after = sc.structure_after
-    return (f"adding {sc.name} lowers chi-square by {sc.delta_bic + sc.k:.1f} for "
+    return (f"adding {sc.name} lowers chi-square by {sc.chi2_gain:.1f} for "
             f"{sc.k} parameter(s): delta-BIC {sc.delta_bic:.1f} against a bootstrap "
             f"look-elsewhere threshold of {thr['threshold']:.1f} ({thr['level']:.0%} false "
             f"alarms, {thr['n_boot']} replicates); held-out RMS {h0['scalar']:.3f} -> "
@@ -119,7 +120,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
     findings.sort(key=lambda f: -np.inf if f["delta_bic"] is None else -f["delta_bic"])
     report = {
         "baseline": {"model": base.baseline, "params": vals, "params_err": errs,
-                     "rms": rms0, "bic": float(fit0.chi2 + fit0.k * np.log(n)),
+                     "rms": rms0, "bic": bic(fit0.chi2, fit0.k, n),
                      "chi2": fit0.chi2, "n_points": n, "k": fit0.k,
                      "heldout_rmse": h0["scalar"],
                      "heldout_by_coord": {c: h0[c] for c in COORDS},

@@ -169,33 +169,3 @@ def bootstrap_threshold(bases, r0, segments, k, n: int, rng,
     q = float(np.quantile(stats, 1.0 - level))
     return {"threshold": q, "level": level, "n_boot": n_boot, "n_locations": len(bases),
             "null_mean": float(stats.mean())}
-
-
-def linear_cv(J, r, folds):
-    """Held-out residuals by blocked cross-validation in the Gauss-Newton limit.
-
-    For each fold the parameters are refitted on the rows outside it by one Gauss-Newton
-    step from the full fit (``r`` and ``J`` at the optimum; the step is what removing
-    those rows moves the optimum by, to first order), and the fold's rows are predicted.
-
-    Parameters
-    ----------
-    J : (n, p) array
-        Whitened Jacobian of the model at the full-data fit (d model / d param).
-    r : (n,) array
-        Whitened residuals (data - model) at the fit.
-    folds : (n,) int array
-        Fold of each row; -1 = always in training.
-
-    Returns
-    -------
-    (n,) array
-        Held-out whitened residual of each row (NaN for rows never held out).
-    """
-    out = np.full(r.size, np.nan)
-    for f in np.unique(folds[folds >= 0]):
-        test = folds == f
-        train = ~test
-        dp, *_ = np.linalg.lstsq(J[train], r[train], rcond=None)
-        out[test] = r[test] - J[test] @ dp
-    return out

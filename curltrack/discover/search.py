@@ -55,6 +55,7 @@ class CandidateScore:
     note: str = ""
     k: int = 0
     nfev: tuple | None = None
+    chi2_gain: float | None = None
     _refine: tuple | None = None
 
 
@@ -253,7 +254,8 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
     score.location = loc
     score.fit = fit1
     score.nfev = getattr(m, "nfev", None)
-    score.delta_bic = float(fit0.chi2 - fit1.chi2 - k * np.log(n))
+    score.chi2_gain = float(fit0.chi2 - fit1.chi2)
+    score.delta_bic = float(score.chi2_gain - k * np.log(n))
     score.params = {p.name: fit1.values[p.name] for p in cand.params}
     score.params_err = {p.name: fit1.err(p.name) for p in cand.params}
     if cand.name == "friction_patch" and score.params["y_start_m"] > score.params["y_end_m"]:
