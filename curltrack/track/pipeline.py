@@ -61,6 +61,8 @@ class _Follower:
         if len(self.hist) == 1:
             return self.hist[-1][1]
         (f0, p0), (f1, p1) = self.hist[-2:]
+        if frame - f1 > 5:  # lost for a while: the camera follows the rock, hold still
+            return p1
         return p1 + (p1 - p0) * (frame - f1) / max(f1 - f0, 1)
 
     def rock_px(self, frame: int):
@@ -118,7 +120,7 @@ class _Follower:
         return m
 
 
-def _calibrate(image, rig, mask, frame, path):
+def _calibrate(image, rig, mask):
     from ..calib import calibrate_frame
 
     try:
@@ -154,19 +156,23 @@ def track_frames(frames, rig: Rig, path=None, n_expected: int | None = None,
             progress(1)
         img = fr.image
         mf = fol.detect(img, fr.index)
-        if mf is None or not mf.found.all():
+        found = mf is not None and bool(mf.found.all())
+        if not found:
             rec.status = ("rock/markers not found" if mf is None else
                           f"markers not found ({mf.message})")
-            if not seen_markers and len(records) >= GIVE_UP_FRAMES:
-                raise TrackingError(
-                    f"no markers of the rig's colours ({', '.join(m.color for m in rig.markers)})"
-                    f" found in frames {records[0].frame}-{fr.index}", path=path,
-                    where=f"frame {fr.index}")
-            continue
+            if not seen_markers:
+                if len(records) >= GIVE_UP_FRAMES:
+                    raise TrackingError(
+                        f"no markers of the rig's colours "
+                        f"({', '.join(m.color for m in rig.markers)}) found in frames "
+                        f"{records[0].frame}-{fr.index}", path=path, where=f"frame {fr.index}")
+                continue
         seen_markers = True
         mask = fol.mask(img.shape, fr.index)
         if tracker is None:
-            calib, calib_msg = _calibrate(img, rig, mask, fr.index, path)
+            if not found:
+                continue
+            calib, calib_msg = _calibrate(img, rig, mask)
             if calib is None:
                 rec.status = f"grid not found ({calib_msg})"
                 if len(records) >= GIVE_UP_FRAMES:
@@ -175,10 +181,14 @@ def track_frames(frames, rig: Rig, path=None, n_expected: int | None = None,
                                         where=f"frame {fr.index}")
                 continue
             tracker = GridTracker(calib, rig)
+        # The grid is followed in every frame, also while the markers are hidden (a
+        # broom), so that its motion prediction - and the cell index - stay current.
         pose = tracker.update(img, fr.index, mask=mask)
-        rec.markers_px = mf.xy_px
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px
+        if not found:
+            continue
+        rec.markers_px = mf.xy_px
         if not pose.ok:
             rec.status = f"grid: {pose.message}"
             continue

@@ -108,7 +108,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     med = np.median(scale[ok])
     spread = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
     contrast = np.array([r.contrast for r in records])
-    quality = (np.exp(-0.5 * ((scale - med) / max(spread, 1e-4)) ** 2)
+    # 1 for a frame whose marker layout agrees with the video's (3 robust sigmas -> 0.6)
+    quality = (np.exp(-0.5 * ((scale - med) / (3 * max(spread, 1e-4))) ** 2)
                * np.clip(contrast / 40.0, 0.0, 1.0))
     data = pd.DataFrame({
         "frame": frame, "t": t, "x": shot["x"], "y": shot["y"], "theta": shot["theta"],

@@ -13,14 +13,15 @@ from curltrack.rig import Marker, default_rig
 from curltrack.simulate import simulate_series
 
 
-def _render(tmp, motion, seed, v0):
+def _render(tmp, motion, seed, v0, occlusion=False):
     from curltrack.render import CameraConfig, RenderConfig, render_video
 
     rig = default_rig()
     sim = simulate_series(ShotModel(v0=v0, omega0=1.5, alpha_y=0.03), fps=30)
     video = tmp / f"{motion}{seed}.mp4"
     truth = render_video(sim, rig, video, tmp / f"{motion}{seed}_truth.csv",
-                         config=RenderConfig(camera=CameraConfig(motion=motion)), seed=seed)
+                         config=RenderConfig(camera=CameraConfig(motion=motion),
+                                             occlusion=occlusion), seed=seed)
     return video, truth, rig
 
 
@@ -46,9 +47,9 @@ def _compare(series, truth):
     return float(np.sqrt(np.mean(e**2))), float(np.degrees(np.sqrt(np.mean(eth**2)))), ok
 
 
-def _check(series, truth, rig):
+def _check(series, truth, rig, min_ok=0.95):
     pos_rms, th_rms, ok = _compare(series, truth)
-    assert ok.mean() > 0.95
+    assert ok.mean() > min_ok
     assert pos_rms < 0.002, f"position RMS {pos_rms * 1000:.2f} mm"
     assert th_rms < 0.3, f"theta RMS {th_rms:.3f} deg"
     for key in ("stop_frame_translation", "stop_frame_rotation"):
@@ -73,12 +74,18 @@ def test_track_rendered_ladder_shot(ladder_video, ladder_tracked):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("motion,seed", [("handheld", 1), ("ladder", 2), ("handheld", 3)])
-def test_track_rendered_shots(tmp_path, motion, seed):
+@pytest.mark.parametrize("motion,seed,occlusion", [("handheld", 1, False), ("ladder", 2, False),
+                                                   ("handheld", 3, False), ("handheld", 4, True),
+                                                   ("ladder", 5, True)])
+def test_track_rendered_shots(tmp_path, motion, seed, occlusion):
+    """Including a broom over the rock: hidden frames are ok = 0, the rest stays right."""
     from curltrack.track import track_video
 
-    video, truth, rig = _render(tmp_path, motion, seed, 0.8)
-    _check(track_video(video, rig), truth, rig)
+    video, truth, rig = _render(tmp_path, motion, seed, 1.0, occlusion)
+    series = track_video(video, rig)
+    _check(series, truth, rig, min_ok=0.8 if occlusion else 0.95)
+    hidden = truth.data["occluded"].to_numpy(dtype=float) > 0.5
+    assert (series.data["ok"].to_numpy()[hidden] == 0).all()
 
 
 def test_cli_track_excluded_frames_and_wrong_colours(ladder_video, tmp_path):
@@ -111,3 +118,23 @@ def test_no_markers_raises_tracking_error(ladder_video):
     wrong = type(rig)(markers=(Marker("#20c040", 0.08, 0.0), Marker("#e020c0", -0.08, 0.0)))
     with pytest.raises(TrackingError, match="no markers"):
         track_video(video, wrong, end_frame=20)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("motion,seed", [("ladder", 11), ("handheld", 12)])
+def test_track_then_fit_recovers_lambdas(tmp_path, motion, seed):
+    """`track` output fed to `fit` gives the rendered shot's lambda_theta, lambda_y."""
+    from curltrack.fit import fit_series
+    from curltrack.physics.closed_form import lambda_from_phi
+    from curltrack.render import CameraConfig, RenderConfig, render_video
+    from curltrack.track import track_video
+
+    rig = default_rig()
+    model = ShotModel(v0=1.2, omega0=2.0, alpha_y=0.02)
+    sim = simulate_series(model, fps=30)
+    video = tmp_path / "draw.mp4"
+    render_video(sim, rig, video, config=RenderConfig(camera=CameraConfig(motion=motion)),
+                 seed=seed)
+    fit = fit_series(track_video(video, rig), rig).values
+    assert abs(fit["lambda_y"] - lambda_from_phi(model.phi_y)) < 0.02
+    assert abs(fit["lambda_theta"] - lambda_from_phi(model.phi_theta)) < 0.02
