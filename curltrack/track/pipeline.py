@@ -129,8 +129,7 @@ def _calibrate(image, rig, mask):
         return None, exc.message
 
 
-def track_frames(frames, rig: Rig, path=None, n_expected: int | None = None,
-                 progress=None) -> tuple[list[FrameRecord], dict]:
+def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[FrameRecord], dict]:
     """Run the per-frame loop over an iterable of :class:`curltrack.video.Frame`.
 
     Returns
@@ -270,7 +269,7 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     total = end - start - len(exclude)
     bar = _progress_bar(total, str(video_path)) if progress else None
     try:
-        records, loop_info = track_frames(frames, rig, path=video_path, n_expected=total,
+        records, loop_info = track_frames(frames, rig, path=video_path,
                                           progress=bar[1] if bar else None)
     finally:
         if bar:
@@ -292,15 +291,19 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
 
 
 def _time_interpolator(records, start, dt):
+    """Time (s) of a frame that was not decoded: interpolated between decoded frames,
+    extrapolated at the nominal frame period beyond them."""
     frames = np.array([r.frame for r in records], float)
     times = np.array([r.t for r in records], float)
 
     def t_of(i):
-        if frames.size >= 2:
-            return float(np.interp(i, frames, times, left=np.nan, right=np.nan)) if \
-                frames[0] <= i <= frames[-1] else float(times[0] + (i - frames[0]) * dt) \
-                if i < frames[0] else float(times[-1] + (i - frames[-1]) * dt)
-        return float((i - start) * dt)
+        if frames.size == 0:
+            return float((i - start) * dt)
+        if i < frames[0]:
+            return float(times[0] - (frames[0] - i) * dt)
+        if i > frames[-1]:
+            return float(times[-1] + (i - frames[-1]) * dt)
+        return float(np.interp(i, frames, times))
 
     return t_of
 

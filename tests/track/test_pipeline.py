@@ -140,3 +140,24 @@ def test_track_then_fit_recovers_lambdas(tmp_path, motion, seed):
     fit = fit_series(track_video(video, rig), rig).values
     assert abs(fit["lambda_y"] - lambda_from_phi(model.phi_y)) < 0.02
     assert abs(fit["lambda_theta"] - lambda_from_phi(model.phi_theta)) < 0.02
+
+
+@pytest.mark.slow
+def test_rock_leaving_the_view_gives_ok0_rows_not_garbage(tmp_path):
+    """A static camera and a rock that slides out of the image."""
+    from curltrack.render import CameraConfig, RenderConfig, render_video
+    from curltrack.track import track_video
+
+    rig = default_rig()
+    sim = simulate_series(ShotModel(v0=1.4, omega0=1.0, alpha_y=0.02), fps=30)
+    video = tmp_path / "leaves.mp4"
+    truth = render_video(sim, rig, video, seed=21,
+                         config=RenderConfig(camera=CameraConfig(motion="static")))
+    series = track_video(video, rig)
+    m = series.data.merge(truth.data[["frame", "x", "y", "in_view"]], on="frame",
+                          suffixes=("", "_t"))
+    ok = m["ok"] == 1
+    assert ok.any() and not ok.all()
+    assert np.hypot(m.x - m.x_t, m.y - m.y_t)[ok].max() < 0.005
+    assert len(series.data) == len(truth.data)  # rows kept, not dropped
+    assert any("not found" in w for w in series.meta["warnings"])
