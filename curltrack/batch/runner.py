@@ -102,6 +102,7 @@ def open_client(workers: int | None = None, scheduler: str | None = None):
         raise InputError(f"--workers must be >= 1, got {workers}", where="--workers")
     with LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
                       processes=True, silence_logs=logging.ERROR, env=dict(THREAD_ENV),
+                      dashboard_address=":0",
                       ) as cluster, Client(cluster) as client:
         yield client
 
