@@ -1,8 +1,9 @@
 """Synthetic overhead video of a shot, with its ground truth (``curltrack render``).
 
 Pipeline: :mod:`~.trajectory` (the series placed on the ice; the truth frame) ->
-:mod:`~.motion` (how the camera is held) -> :mod:`~.ice` and :mod:`~.sprites` (ice, threads, rock, broom,
-pre-rendered once) -> :mod:`~.compositor` (per-frame warps, blur, distortion, noise) ->
+:mod:`~.motion` (how the camera is held) -> :mod:`~.ice` and :mod:`~.sprites` (ice and
+threads; rock and broom; pre-rendered once) -> :mod:`~.compositor` (per-frame warps,
+blur, distortion, noise) ->
 :mod:`~.production` (one rendering set up, frames streamed) -> :mod:`~.video` (the mp4
 and the truth files).  Pixel and world conventions: :mod:`curltrack.render.camera`.
 """

@@ -79,6 +79,14 @@ class IceStyle:
         RMS error of each thread's position in the lattice (laid by hand), default 0.0004.
     scratches_per_m2 : float
         Faint straight scratches (old rock paths, skates), default 0.6 per m^2.
+    house_at_m : float, optional
+        Paint the house (12-ft blue ring, 4-ft red ring, tee line) with its tee this far
+        from the start along the direction of travel (m); default None (no house).
+    sheet_lines : bool
+        Paint the centre line along the travel through the start (and the tee and hog
+        lines with the house); default False.
+    paint_contrast : float
+        Fraction of the paint colour seen through the ice, default 0.55.
     """
 
     ice_color: str = "#d0d6db"
@@ -91,6 +99,53 @@ class IceStyle:
     thread_contrast: float = 0.5
     thread_jitter_m: float = 0.0004
     scratches_per_m2: float = 0.6
+    house_at_m: float | None = None
+    sheet_lines: bool = False
+    paint_contrast: float = 0.55
+
+
+# The sheet's painted markings (m), as the rules draw them.
+RING_12FT, RING_8FT, RING_4FT, BUTTON = 1.829, 1.219, 0.610, 0.152
+LINE_W, HOG_W, HOG_FROM_TEE = 0.013, 0.102, 6.40
+PAINT = {"blue": "#2a5cc8", "red": "#c8262a", "black": "#202020"}
+
+
+def sheet_markings(style: IceStyle, start, travel) -> list:
+    """Painted markings in world coordinates: ("ring", centre, r_in, r_out, colour) and
+    ("line", point, unit direction, width, colour); ``travel`` is a unit vector."""
+    start, travel = np.asarray(start, float), np.asarray(travel, float)
+    across = np.array([-travel[1], travel[0]])
+    out = []
+    if style.sheet_lines:
+        out.append(("line", start, travel, LINE_W, PAINT["black"]))
+    if style.house_at_m is not None:
+        tee = start + style.house_at_m * travel
+        out += [("ring", tee, RING_8FT, RING_12FT, PAINT["blue"]),
+                ("ring", tee, BUTTON, RING_4FT, PAINT["red"])]
+        if style.sheet_lines:
+            out += [("line", tee, across, LINE_W, PAINT["black"]),
+                    ("line", tee - HOG_FROM_TEE * travel, across, HOG_W, PAINT["red"])]
+    return out
+
+
+def _paint(img, light, Xc, Yc, markings, ppm, contrast):
+    """Blend painted markings into a strip ``img`` (h, W, 3) at world Xc (W,), Yc (h,)."""
+    for kind, p, a, b, color in markings:
+        if kind == "ring":
+            if (Yc[-1] < p[1] - b or Yc[0] > p[1] + b or Xc[-1] < p[0] - b
+                    or Xc[0] > p[0] + b):
+                continue
+            d = np.hypot(Xc[None, :] - p[0], Yc[:, None] - p[1])
+            cov = np.clip(0.5 + (d - a) * ppm, 0, 1) * np.clip(0.5 + (b - d) * ppm, 0, 1)
+        else:
+            d = np.abs((Xc[None, :] - p[0]) * -a[1] + (Yc[:, None] - p[1]) * a[0])
+            cov = np.clip(0.5 + (0.5 * b - d) * ppm, 0, 1)
+        if not cov.any():
+            continue
+        w = (contrast * cov)[..., None].astype(np.float32)
+        img *= 1 - w
+        img += w * bgr(color) * light[..., None]
+    return img
 
 
 def _thread_profile(coord, positions, width_m, ppm):
@@ -103,7 +158,7 @@ def _thread_profile(coord, positions, width_m, ppm):
 
 
 def ice_texture(rig: Rig, bounds, ppm: float, phase, style: IceStyle,
-                rng: np.random.Generator, strip_rows: int = 1024) -> Texture:
+                rng: np.random.Generator, markings=(), strip_rows: int = 1024) -> Texture:
     """Render the ice sheet with its thread lattice over ``bounds`` (m).
 
     Parameters
@@ -118,6 +173,8 @@ def ice_texture(rig: Rig, bounds, ppm: float, phase, style: IceStyle,
         World X of a thread running along Y and world Y of a thread running along X (m).
     style : IceStyle
     rng : numpy.random.Generator
+    markings : list, optional
+        Painted markings (see :func:`sheet_markings`), under the threads.
 
     Returns
     -------
@@ -175,6 +232,8 @@ def ice_texture(rig: Rig, bounds, ppm: float, phase, style: IceStyle,
         fine = cv2.GaussianBlur(rng.standard_normal((h, W), dtype=np.float32), (0, 0), 0.7)
         shade = style.pebble_contrast * peb + style.speckle * 1.6 * fine
         img = base[None, None, :] * light[..., None] + shade[..., None]
+        if markings:
+            img = _paint(img, light, Xc, Yc[r0:r1], markings, ppm, style.paint_contrast)
         a = style.thread_contrast * cov_x[None, :, None]
         img = img * (1 - a) + (col_x[None, :, :] * light[..., None]) * a
         a = style.thread_contrast * cov_y[r0:r1, None, None]

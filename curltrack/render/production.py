@@ -20,7 +20,7 @@ from .camera import Camera
 from .compositor import Compositor, pose_matrix
 from .config import RenderConfig
 from .motion import CameraPath
-from .ice import N_ICE, ice_texture
+from .ice import N_ICE, ice_texture, sheet_markings
 from .sprites import broom_sprite, rock_sprites
 from .trajectory import Trajectory, truth_table
 
@@ -119,7 +119,11 @@ class Production:
         self.ppm_tex = float(min(cfg.texture_oversample * self.ppm_img, np.sqrt(60e6 / area),
                                  30000 / max(bounds[2] - bounds[0], bounds[3] - bounds[1])))
         world_phase = (self.phase[0] * rig.spacing_x_m, self.phase[1] * rig.spacing_y_m)
-        self.tex = ice_texture(rig, bounds, self.ppm_tex, world_phase, cfg.ice, rng)
+        travel = np.array([np.cos(traj.travel_yaw), np.sin(traj.travel_yaw)])
+        if not traj.translating:  # the sheet runs along the grid axis of image up
+            travel = np.array([-np.sin(traj.truth_rot), np.cos(traj.truth_rot)])
+        marks = sheet_markings(cfg.ice, (0.0, 0.0), travel)
+        self.tex = ice_texture(rig, bounds, self.ppm_tex, world_phase, cfg.ice, rng, marks)
         if cfg.optics_blur_px > 0:
             sig = cfg.optics_blur_px * self.ppm_tex / self.ppm_img
             self.tex.image = cv2.GaussianBlur(self.tex.image, (0, 0), sig)

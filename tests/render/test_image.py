@@ -99,3 +99,22 @@ def test_sensor_noise_level():
     expected = np.sqrt(3.0**2 + 0.1 * level[sel]).mean()
     assert abs(diff[sel].mean()) < 0.2
     assert diff[sel].std() == pytest.approx(expected, rel=0.2)
+
+
+def test_painted_house_where_asked():
+    from curltrack.render import IceStyle
+
+    shot = closed_form_shot(y_F=0.0, t_F=1.0, theta_F=1.0, duration=0.1)
+    cfg = RenderConfig(ice=IceStyle(house_at_m=0.0, sheet_lines=True), read_noise=0.0,
+                       shot_noise_gain=0.0, jpeg_quality=None, glare=0.0)
+    prod = Production(shot, default_rig(), cfg, seed=4)
+    img, info = next(prod.frames(0, 1))
+    rot = np.deg2rad(prod.settings()["truth_rotation_deg"])
+    z = prod.tex_z_m
+    for r, channel in ((0.4, 2), (1.5, 0)):  # 4-ft ring red (BGR index 2), 12-ft blue (0)
+        for ang in np.deg2rad([30, 150, 250]):
+            X, Y = _rot(rot) @ [r * np.cos(ang), r * np.sin(ang)]
+            u, v = np.round(info.camera.project([[X, Y, z]])[0]).astype(int)
+            if 0 <= u < img.shape[1] and 0 <= v < img.shape[0]:
+                px = img[v, u].astype(int)
+                assert px[channel] > max(np.delete(px, channel)) + 30, (r, px)
