@@ -66,7 +66,7 @@ class ClosedSegment:
     # --- quadrature of heading and position ---------------------------------------------
     def _build(self):
         self.t_end = min(self.t0 + self.T_S, self.t1)
-        if self.T_S <= 0 or self.t_end <= self.t0:
+        if self.T_S <= 0 or self.t_end - self.t0 <= 1e-12 * max(1.0, self.T_S):  # ~empty
             self.nodes = None
             self.x_end, self.y_end, self.psi_end = self.x0, self.y0, self.psi0
             return
@@ -132,7 +132,7 @@ class ClosedSegment:
             out["vx"][moving], out["vy"][moving] = -v * np.sin(psi), v * np.cos(psi)
         rest = ~moving
         if rest.any():
-            if self.nodes is not None and self.t_end < self.t0 + self.T_S:  # cut by a pick
+            if self.t_end < self.t0 + self.T_S:  # cut short by a pick: still moving
                 v_end = float(self.speed(self.t_end))
                 vx_e, vy_e = -v_end * math.sin(self.psi_end), v_end * math.cos(self.psi_end)
             else:

@@ -135,6 +135,17 @@ def test_pick_is_an_impulse(method):
     assert tr.vx[3] == 0 and tr.omega[3] == 0
 
 
+@pytest.mark.parametrize("t_s", [0.0, 1e-200, 1e-9])
+def test_pick_at_the_start_changes_the_initial_conditions(t_s):
+    t = np.linspace(0, 30, 61)
+    m = ShotModel(v0=2.0, omega0=1.5)
+    tr = simulate(m, (Effect("pick", {"t_s": t_s, "dvy_m_per_s": -0.3,
+                                      "domega_rad_per_s": 0.5}),), t=t)
+    ref = simulate(ShotModel(v0=1.7, omega0=2.0, alpha_theta=m.alpha_theta_value), t=t)
+    np.testing.assert_allclose(tr.y, ref.y, atol=1e-6)
+    np.testing.assert_allclose(tr.theta, ref.theta, atol=1e-6)
+
+
 def test_velocity_dependent_friction_replaces_the_law():
     base = ShotModel(v0=2.0, omega0=1.5, phi_y=0.0, alpha_y=0.01, phi_theta=0.0)
     eff = (Effect("velocity_dependent_friction", {"phi": -0.19, "alpha": 0.0076,
