@@ -238,7 +238,7 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
     resp = thread_response(img, model, contrast)
     if mask is not None:
         resp = np.where(mask == 0, resp, 0).astype(np.float32)
-    xs, wt = candidate_pixels(resp, mask)
+    xs, wt = candidate_pixels(resp, mask, max_n=60_000)
     if len(xs) < 200:
         raise TrackingError("no grid found: almost no thread-like pixels in the frame")
     A = initial_lattice(resp, xs, wt, c, rig.spacing_x_m / rig.spacing_y_m)

@@ -186,12 +186,20 @@ class GridTracker:
             if attempt or (moved.max() < 5.0 and info["ok_fraction"] > 0.6):
                 break
         if info is None:
+            # Threads half a cell from where they were predicted sit at the ends of the
+            # coarse profiles: retry with the prediction moved by half a cell.
+            for da, db in ((0.5, 0.0), (0.0, 0.5), (0.5, 0.5)):
+                shifted = np.array([[1.0, 0, da], [0, 1.0, db], [0, 0, 1]]) @ Hc_pred
+                Hc, info, obs = self._measure(image_bgr, shifted, mask, motion, coarse=True)
+                if info is not None:
+                    break
+        if info is None:
             return failed("grid not visible (too few thread points)")
         if info["lines_a"] < 2 or info["lines_b"] < 2:
             return failed("grid not visible (fewer than 2 threads in a family)")
         jump = apply_h(Hc, np.zeros((1, 2)))[0] - apply_h(Hc_pred, np.zeros((1, 2)))[0]
         n = self.calib.n_colors if self.calib.colors_resolved else 0
-        k, note, ambiguous = self._colour_correction(obs, jump, n)
+        k, note, ambiguous, confirmed = self._colour_correction(obs, jump, n)
         Hc = np.array([[1.0, 0, k[0]], [0, 1.0, k[1]], [0, 0, 1]]) @ Hc
         jump = jump + k
         H = metric_from_cells(Hc, K, self.sx, self.sy)
@@ -204,9 +212,10 @@ class GridTracker:
             pose.ok = False
             pose.message = "cell index ambiguous: " + note
             return pose
-        if np.max(np.abs(jump)) > AMBIGUOUS_CELLS and not note:
+        unchecked = np.abs(jump) * ~np.array(confirmed)
+        if np.max(unchecked) > AMBIGUOUS_CELLS:
             pose.ok = False
-            pose.message = (f"cell index ambiguous: the grid moved {np.max(np.abs(jump)):.2f} "
+            pose.message = (f"cell index ambiguous: the grid moved {np.max(unchecked):.2f} "
                             "cells more than predicted and the thread colours cannot tell")
             return pose
         err = float(np.hypot(*(np.asarray(jump) * (pa, pb))))
@@ -217,11 +226,13 @@ class GridTracker:
     def _colour_correction(self, obs, jump, n):
         """Integer cell shift (cells) that makes the thread colours match the sequence.
 
-        Returns (shift, note, ambiguous): ambiguous when the colours say the index is off
-        but two shifts explain the motion about equally well.
+        Returns (shift, note, ambiguous, confirmed): ambiguous when the colours say the
+        index is off but two shifts explain the motion about equally well; confirmed[j]
+        when family j's colours were read well enough to check its index (mod n).
         """
+        confirmed = [False, False]
         if n < 2 or obs["colour"] is None:
-            return np.zeros(2), "", False
+            return np.zeros(2), "", False, confirmed
         k = np.zeros(2)
         notes = []
         ambiguous = False
@@ -232,7 +243,10 @@ class GridTracker:
             for i in np.unique(ids):
                 cols[int(i)] = int(np.argmax(obs["colour"][sel][ids == i].sum(axis=0)))
             p, agree, _ = colour_phase(cols, n, sign=self.calib.color_signs[j])
-            if agree < 0.8 or len(cols) < n + 1 or p == 0:
+            if agree < 0.8 or len(cols) < n + 1:
+                continue
+            confirmed[j] = True
+            if p == 0:
                 continue
             cands = np.array([-p + m * n for m in (-1, 0, 1, 2)])
             cost = np.abs(jump[j] + cands)
@@ -245,4 +259,4 @@ class GridTracker:
             k[j] = cands[o[0]]
             notes.append(f"{'xy'[j]} cell index corrected by {int(k[j]):+d} from the thread "
                          "colours")
-        return k, "; ".join(notes), ambiguous
+        return k, "; ".join(notes), ambiguous, confirmed

@@ -69,3 +69,24 @@ def track_rendered(video, truth, rig, mask=True):
         oks.append(pose.ok)
         poses.append(pose)
     return np.array(est), np.array(oks), poses
+
+
+class FrameMatch:
+    """The rigid map (quarter turns + offset) from the lattice frame to a truth frame,
+    fixed on a first frame, then applied unchanged (a cell jump later shows as a
+    spacing-sized error)."""
+
+    def __init__(self, est, truth, sx, sy):
+        _, _, self.k = align(est, truth, sx, sy)
+        self.R = self._rot(self.k)
+        d = (truth - est @ self.R.T).mean(axis=0)
+        self.off = np.round(d / (sx, sy)) * (sx, sy)
+
+    @staticmethod
+    def _rot(k):
+        c, s = np.round(np.cos(k * np.pi / 2)), np.round(np.sin(k * np.pi / 2))
+        return np.array([[c, -s], [s, c]])
+
+    def error(self, est, truth):
+        """Largest error (m) of ``est`` mapped to the truth frame."""
+        return float(np.abs(est @ self.R.T + self.off - truth).max())

@@ -13,7 +13,7 @@ from curltrack.render import RenderConfig, render_video
 from curltrack.render.motion import CameraConfig
 from curltrack.rig import Marker, Rig
 
-from calib.helpers import align, short_shot, track_rendered
+from calib.helpers import FrameMatch, align, short_shot, track_rendered
 
 SETUPS = {
     # fast takeout (3 m/s: ~0.1 m per frame, more than half a 0.15 m cell), handheld
@@ -68,20 +68,24 @@ def test_cell_index_survives_a_release_at_full_speed():
     cal = calibrate_frame(draw_lattice(cams[0], seed=0), rig)
     tr = GridTracker(cal, rig)
     pts = np.array([[200.0, 150.0], [760.0, 400.0], [480.0, 270.0]])
-    ref = None
+    match = None
     for i, cam in enumerate(cams):
         pose = tr.update(draw_lattice(cam, seed=i), i)
         assert pose.ok, pose.message
-        d = pose.image_to_ice(pts) - cam.image_to_plane(pts)
-        ref = d.mean(axis=0) if ref is None else ref
-        assert np.abs(d - ref).max() < 0.5e-3, i  # same absolute cell in every frame
+        est, truth = pose.image_to_ice(pts), cam.image_to_plane(pts)
+        match = match or FrameMatch(est, truth, 0.15, 0.15)
+        assert match.error(est, truth) < 0.5e-3, i  # same absolute cell in every frame
 
 
-@pytest.mark.parametrize("colours", [True, False])
-def test_unexplained_jump_is_flagged_not_followed(colours):
-    """The view jumps by half a cell more than the smooth motion predicts: no guess."""
+@pytest.mark.parametrize("colours, jump_m", [
+    (True, 0.09), (False, 0.06),
+    pytest.param(True, 0.075, marks=pytest.mark.slow),
+    pytest.param(False, 0.09, marks=pytest.mark.slow)])
+def test_unexplained_jump_is_flagged_not_followed(colours, jump_m):
+    """The view jumps by 0.4-0.6 cell more than the smooth motion predicts: no guess
+    without colours; with them, the colour sequence tells which way it went."""
     rig = Rig() if colours else Rig(grid_colors=())
-    cams = _moving_cameras(5, 0.03, 0.0, seed=4, jump_at=4, jump_m=0.075)
+    cams = _moving_cameras(5, 0.03, 0.0, seed=4, jump_at=4, jump_m=jump_m)
     col = ((208, 32, 32), (32, 64, 208)) if colours else ((60, 60, 60),)
     cal = calibrate_frame(draw_lattice(cams[0], colors=col, seed=0), rig)
     tr = GridTracker(cal, rig)
@@ -89,10 +93,10 @@ def test_unexplained_jump_is_flagged_not_followed(colours):
     assert all(p.ok for p in poses[:4])
     last = poses[4]
     if colours:  # the colour sequence resolves it: the measured pose follows the camera
-        p = np.array([[480.0, 270.0]])
-        d0 = poses[0].image_to_ice(p) - cams[0].image_to_plane(p)
-        d4 = last.image_to_ice(p) - cams[4].image_to_plane(p)
-        assert last.ok and np.abs(d4 - d0).max() < 0.5e-3
+        p = np.array([[200.0, 150.0], [760.0, 400.0], [480.0, 270.0]])
+        match = FrameMatch(poses[0].image_to_ice(p), cams[0].image_to_plane(p), 0.15, 0.15)
+        assert last.ok, last.message
+        assert match.error(last.image_to_ice(p), cams[4].image_to_plane(p)) < 0.5e-3
     else:
         assert not last.ok and "ambiguous" in last.message
 
