@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from curltrack.physics import ShotModel
-from curltrack.render import CameraConfig, Production, RenderConfig
+from curltrack.render import CameraConfig, IceStyle, Production, RenderConfig
 from curltrack.rig import default_rig, load_rig
 from curltrack.simulate import simulate_series
 
@@ -41,6 +41,9 @@ def _shots():
          RenderConfig(occlusion=True, occlusion_t_s=2.0), 58),
         ("other_rig", "another rig: 0.1 x 0.2 m lattice, three markers, camera at 2.5 m",
          slow, other, RenderConfig(), 45),
+        ("house", "end of the draw over the painted house and sheet lines", draw, rig,
+         RenderConfig(ice=IceStyle(house_at_m=26.8, sheet_lines=True), heading_deg=0.5),
+         len(draw.data) - 45),
     ]
 
 

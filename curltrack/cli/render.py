@@ -59,6 +59,10 @@ def render(
     occlusion_t_s: Optional[float] = typer.Option(None, "--occlusion-t", help="When (s)."),
     stopped_tail_s: float = typer.Option(1.0, "--stopped-tail-s", help="Rest shown after "
                                          "the stop (s)."),
+    house_at_m: Optional[float] = typer.Option(None, "--house-at-m", help="Paint the house "
+                                               "with its tee this far along the travel (m)."),
+    sheet_lines: bool = typer.Option(False, "--sheet-lines/--no-sheet-lines",
+                                     help="Paint the centre (and tee, hog) lines."),
     v0: Optional[float] = typer.Option(None, "--v0", help="Without SIM.csv: initial speed "
                                        "(m/s)."),
     omega0: Optional[float] = typer.Option(None, "--omega0", help="Without SIM.csv: initial "
@@ -68,7 +72,7 @@ def render(
     a_T: Optional[float] = typer.Option(None, "--a-T", "--a-t", help="Without SIM.csv: a_T."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress output."),
 ):
-    from ..render import CameraConfig, RenderConfig, render_video
+    from ..render import CameraConfig, IceStyle, RenderConfig, render_video
     from ..rig import default_rig, load_rig
 
     if output.suffix.lower() != ".mp4":
@@ -92,10 +96,11 @@ def render(
         series = simulate_series(shot, fps=fps or the_rig.fps or 30.0, tail_s=0.0)
     cam = CameraConfig(motion=camera, height_m=camera_height_m, view_m=view_m,
                        tilt_deg=tilt_deg, yaw_deg=yaw_deg, k1=k1)
+    ice = IceStyle(house_at_m=house_at_m, sheet_lines=sheet_lines)
     cfg = RenderConfig(width=width, height=height, fps=fps, camera=cam, heading_deg=heading_deg,
                        blur_subframes=blur_subframes, shutter=shutter, read_noise=noise,
                        jpeg_quality=jpeg_quality or None, occlusion=occlusion,
-                       occlusion_t_s=occlusion_t_s, stopped_tail_s=stopped_tail_s)
+                       occlusion_t_s=occlusion_t_s, stopped_tail_s=stopped_tail_s, ice=ice)
     truth_path = truth or output.with_suffix(".truth.csv")
     result = render_video(series, the_rig, output, truth_path, config=cfg, seed=seed,
                           progress=not quiet)
