@@ -1,9 +1,11 @@
-"""Per-frame image formation: warp the ice and the rock, blur, distort, vignette, noise.
+"""Per-frame image formation: warp the ice and the rock, blur, distort, light, noise.
 
 The scene is warped onto an *undistorted* canvas (a pinhole image slightly larger than
-the output, so that barrel distortion has pixels to pull in), one warp per sub-frame;
-the sub-frames are averaged (motion blur), then one fixed ``cv2.remap`` applies the lens
-distortion, then vignetting and sensor noise, then optional JPEG-style compression.
+the output, so that barrel distortion has pixels to pull in).  Motion blur averages
+sub-frames: the ice as one warp convolved with the sub-frames' shift kernel when the
+camera translates (or several warps when it turns), the box around the rock as every
+sub-frame exactly.  Then one fixed ``cv2.remap`` applies the lens distortion, then lamp
+glare, vignetting, flicker and sensor noise, then optional JPEG-style compression.
 """
 
 from __future__ import annotations
