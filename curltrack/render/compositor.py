@@ -46,6 +46,8 @@ class Compositor:
     jpeg_quality : int or None
         Extra per-frame JPEG compression (0-100), None = off.
     rng : numpy.random.Generator
+        Draws the noise bank; each frame's noise and flicker come from a generator
+        seeded by (a number drawn here, frame index), so any frame renders alike alone.
     glare : (lamps (N, 3) m, peak levels, spread rad), optional
         Diffuse reflections of the lamps in the ice: each lamp's mirror image (below the
         ice, so it moves against the lattice as the camera moves) as a broad Gaussian.
@@ -85,6 +87,7 @@ class Compositor:
         self.glare = glare
         self.flicker = float(flicker)
         self._flicker_phase = rng.uniform(0, 2 * np.pi)
+        self._frame_seed = int(rng.integers(2**63))
 
     def ice_homography(self, cam: Camera, tex: Texture) -> np.ndarray:
         """Texture (col, row) -> canvas px at pose ``cam``."""
@@ -144,7 +147,7 @@ class Compositor:
         K = K[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
         return K, (half - cols[0], half - rows[0])
 
-    def frame(self, times, cam_at, layers_at, tex: Texture) -> np.ndarray:
+    def frame(self, times, cam_at, layers_at, tex: Texture, index: int = 0) -> np.ndarray:
         """Render one frame exposed over the sub-frame ``times`` (s).
 
         The ice: when the camera translates (the ice moves alike over the whole view,
@@ -163,7 +166,10 @@ class Compositor:
         layers_at : callable
             t -> list of (Sprite, world pose 3x3), bottom to top.
         tex : Texture
+        index : int
+            Frame index: seeds this frame's noise and flicker.
         """
+        self.rng = np.random.default_rng((self._frame_seed, int(index)))
         cams = [cam_at(t) for t in times]
         n = len(times)
         self._t_mid = 0.5 * (times[0] + times[-1])

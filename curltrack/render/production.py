@@ -1,8 +1,9 @@
 """One rendering set up: the shot placed, the camera path, the scene; frames on demand.
 
-:class:`Production` holds everything random (drawn once from the seed, in a fixed
-order), so that :meth:`Production.frames` streams the video frame by frame and
-:meth:`Production.truth` gives the ground truth of exactly those frames.
+:class:`Production` draws every random choice from the seed (independent streams for
+the placement, the camera and the scene; each frame's noise seeded by its index), so
+that :meth:`Production.frames` streams the video frame by frame, any frame renders the
+same alone, and :meth:`Production.truth` gives the ground truth of exactly those frames.
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ from ..series import Series
 from .camera import Camera
 from .compositor import Compositor, pose_matrix
 from .config import RenderConfig
-from .motion import CameraPath
 from .ice import N_ICE, ice_texture, sheet_markings
+from .motion import CameraPath
 from .sprites import broom_sprite, rock_sprites
 from .trajectory import Trajectory, truth_table
 
@@ -176,7 +177,8 @@ class Production:
         stop = self.n_frames if stop is None else min(stop, self.n_frames)
         for k in range(start, stop):
             tk = self.t_frames[k]
-            img = self.comp.frame(tk + self.offsets, self.path.camera, self.layers_at, self.tex)
+            img = self.comp.frame(tk + self.offsets, self.path.camera, self.layers_at, self.tex,
+                                  index=k)
             yield img, FrameInfo(k, float(tk), self.cams[k])
 
     def occluded_fraction(self, k: int) -> float:

@@ -65,6 +65,9 @@ def test_same_seed_same_frames_other_seed_other_frames():
     c, tc = run(8)
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
     assert ta.equals(tb)
+    # any frame renders the same alone (noise seeded per frame)
+    alone = next(Production(shot, default_rig(), cfg, 7).frames(3, 4))[0]
+    assert np.array_equal(alone, a[3])
     assert not np.array_equal(a[0], c[0])
     assert not np.allclose(ta["camera_x_m"], tc["camera_x_m"])
 
