@@ -47,6 +47,9 @@ class ClosedSegment:
         self.T_R = (float(cf.stop_time_rotation(abs(w0), model.phi_theta,
                                                 model.alpha_theta_value, model.R, model.r))
                     if w0 != 0 else 0.0)
+        # motions that end within 1e-12 s (spins or speeds ~1e-300) count as none
+        self.T_S = self.T_S if self.T_S > 1e-12 else 0.0
+        self.T_R = self.T_R if self.T_R > 1e-12 else 0.0
         self.t_stop_translation = t0 + self.T_S
         self.t_stop_rotation = t0 + self.T_R
         self._build()

@@ -126,6 +126,8 @@ class ShotModel(_ModelParams):
             value = getattr(self, name)
             if value is not None and value <= 0.0:
                 raise ParameterError(f"must be > 0 (got {value})", where=name)
+            if value is not None and name.startswith("alpha") and value < 1e-12:
+                raise ParameterError(f"{value} is implausibly small (< 1e-12)", where=name)
 
     @property
     def lambda_y(self) -> float:
@@ -140,7 +142,7 @@ class ShotModel(_ModelParams):
         """alpha_theta in (m/s)^(-phi_theta); when tied, t_Ftheta(omega0) = t_FS(v0)."""
         if self.alpha_theta is not None:
             return self.alpha_theta
-        w0 = abs(self.omega0) if self.omega0 else 1.0
+        w0 = max(abs(self.omega0), 1e-6) if self.omega0 else 1.0  # no 0 ** (1 - phi)
         t_fs = cf.stop_time_translation(self.v0, self.phi_y, self.alpha_y) if self.v0 else 0.0
         if t_fs <= 0.0:  # pure rotation: no translation to tie to; use the rate law of
             t_fs = cf.stop_time_translation(1.0, self.phi_y, self.alpha_y)  # a 1 m/s draw
