@@ -50,6 +50,29 @@ def test_rendered_video_homography_accuracy(rendered):
     assert all(np.isfinite(p.sigma_px) for p in poses)
 
 
+def test_rendered_video_lens_recovered(rendered):
+    """k1 and the distortion centre of the renderer's camera, from the first frame."""
+    name, video, truth, rig = rendered
+    from curltrack.video import read_frame
+
+    cal = calibrate_frame(read_frame(video, 0), rig)
+    meta = truth.attrs.get("render") or rendered_meta(video)
+    k1_true = meta["camera"]["k1"] * (cal.K[0, 0] / meta["f_px"]) ** 2
+    assert cal.dist[0] == pytest.approx(k1_true, rel=0.1), name
+    # the distortion itself (k1 and k2 trade off a little): radial shift at the corners
+    r = np.hypot(480, 270) / cal.K[0, 0]
+    shift = cal.K[0, 0] * r * (cal.dist[0] * r ** 2 + cal.dist[1] * r ** 4)
+    assert shift == pytest.approx(cal.K[0, 0] * r * k1_true * r ** 2, abs=0.5), name
+    if abs(k1_true) > 0.15:  # (weak distortion barely defines its centre, nor needs it)
+        assert np.hypot(cal.K[0, 2] - meta["cx_px"], cal.K[1, 2] - meta["cy_px"]) < 4.0
+
+
+def rendered_meta(video):
+    import json
+
+    return json.loads(video.with_suffix(".render.json").read_text())
+
+
 def _moving_cameras(n, step_m, yaw_rate, seed, jump_at=None, jump_m=0.0):
     rng = np.random.default_rng(seed)
     yaw0, f, h = rng.uniform(-np.pi, np.pi), rng.uniform(500, 700), rng.uniform(1.6, 2.8)
