@@ -69,15 +69,15 @@ class Trajectory:
         self.t = t - t[0]
         xy = d[["x", "y"]].to_numpy(float)
         self.xy = xy - xy[0]
-        self.theta = d["theta"].to_numpy(float) - d["theta"].iloc[0]
+        self.theta_rows = d["theta"].to_numpy(float) - d["theta"].iloc[0]
         self.heading = float(heading_rad)
         self.psi0 = float(psi0)
         self.meta = series.meta
         self.warnings: list[str] = []
         self._ixy = PchipInterpolator(self.t, self.xy, axis=0, extrapolate=True)
-        self._ith = PchipInterpolator(self.t, self.theta, extrapolate=True)
+        self._ith = PchipInterpolator(self.t, self.theta_rows, extrapolate=True)
         self.t_stop_tr = self._stop("t_stop_translation", self.xy, STILL_M)
-        self.t_stop_rot = self._stop("t_stop_rotation", self.theta, STILL_RAD)
+        self.t_stop_rot = self._stop("t_stop_rotation", self.theta_rows, STILL_RAD)
         still_at_end = all(s is not None and s <= self.t[-1] + 1e-9
                            for s in (self.t_stop_tr, self.t_stop_rot))
         self.stopped = still_at_end
@@ -121,9 +121,13 @@ class Trajectory:
         """Rock centre in the world (N, 2) at times ``t`` (m)."""
         return self._ixy(self._clip(np.atleast_1d(t))) @ _rot(self.heading).T
 
+    def theta(self, t) -> np.ndarray:
+        """The series' theta (rad, CCW, theta(0) = 0) at times ``t``."""
+        return self._ith(self._clip(np.atleast_1d(t)))
+
     def psi(self, t) -> np.ndarray:
         """Rock orientation in the world (rad, CCW) at times ``t``."""
-        return self.psi0 + self._ith(self._clip(np.atleast_1d(t)))
+        return self.psi0 + self.theta(t)
 
     def to_truth(self, world_xy) -> np.ndarray:
         """World (N, 2) -> truth frame (N, 2) (m)."""
@@ -154,7 +158,7 @@ def truth_table(traj: Trajectory, rig, path, cams, t_frames, occluded=None) -> p
     psi = traj.psi(t_frames)
     h = rig.rock_height_m
     cols = {"frame": np.arange(len(t_frames)), "t": t_frames, "x": xy[:, 0], "y": xy[:, 1],
-            "theta": traj._ith(traj._clip(t_frames)), "ok": np.ones(len(t_frames), int)}
+            "theta": traj.theta(t_frames), "ok": np.ones(len(t_frames), int)}
     uv = np.array([c.project(np.r_[p, 0.0])[0] for c, p in zip(cams, world)])
     top = np.array([c.project(np.r_[p, h])[0] for c, p in zip(cams, world)])
     cols.update(u_px=uv[:, 0], v_px=uv[:, 1], u_top_px=top[:, 0], v_top_px=top[:, 1])
