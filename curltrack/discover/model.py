@@ -112,12 +112,15 @@ def covariance(J) -> np.ndarray:
         u, s, vt = np.linalg.svd(J / d, full_matrices=False)
     except np.linalg.LinAlgError:
         return np.full((J.shape[1],) * 2, np.nan)
-    if s.size == 0 or s[-1] < 1e-10 * s[0]:
-        inv = np.where(s > 1e-10 * s[0], 1.0 / np.maximum(s, 1e-300) ** 2, np.inf)
-    else:
-        inv = 1.0 / s**2
-    with np.errstate(invalid="ignore"):
-        c = (vt.T * inv) @ vt
+    if s.size == 0:
+        return np.zeros((J.shape[1],) * 2)
+    ok = s > 1e-10 * s[0]
+    c = (vt[ok].T / s[ok] ** 2) @ vt[ok]
+    # parameters that move along a singular direction are not determined: infinite error
+    loose = (vt[~ok] ** 2).sum(axis=0) > 1e-6
+    c[loose, :] = np.nan
+    c[:, loose] = np.nan
+    c[loose, loose] = np.inf
     return c / d[:, None] / d[None, :]
 
 
