@@ -21,6 +21,9 @@ from .effects import heading_rate, transverse_gain
 
 _U_NODES = np.concatenate([np.linspace(1.0, 0.02, 400, endpoint=False),
                            np.geomspace(0.02, 1e-12, 160), [0.0]])
+MIN_NODES = 200
+MAX_DPSI = 0.02    # rad of heading change per interval before it is subdivided
+MAX_NODES = 20000
 _GL_X = np.array([-math.sqrt(0.6), 0.0, math.sqrt(0.6)])
 _GL_W = np.array([5.0, 8.0, 5.0]) / 9.0
 
@@ -35,9 +38,11 @@ def _hermite(h, s, y0, y1, d0, d1):
 class ClosedSegment:
     """Motion between t0 and t1 (next pick) from state (x, y, vx, vy, theta, omega)."""
 
-    def __init__(self, model, late_curl, t0: float, state, t1: float):
+    def __init__(self, model, late_curl, t0: float, state, t1: float,
+                 horizon: float = math.inf):
         x0, y0, vx0, vy0, th0, w0 = (float(s) for s in state)
         self.model, self.late, self.t0, self.t1 = model, late_curl, t0, t1
+        self.horizon = horizon  # nothing after this is ever evaluated: not integrated
         self.x0, self.y0, self.th0, self.w0 = x0, y0, th0, w0
         self.v0 = math.hypot(vx0, vy0)
         self.psi0 = math.atan2(-vx0, vy0) if self.v0 > 0 else 0.0
@@ -73,18 +78,32 @@ class ClosedSegment:
             self.nodes = None
             self.x_end, self.y_end, self.psi_end = self.x0, self.y0, self.psi0
             return
-        u_end = max(0.0, 1.0 - (self.t1 - self.t0) / self.T_S)
+        t_grid = min(self.t_end, max(self.horizon, self.t0))
+        u_end = max(0.0, 1.0 - (t_grid - self.t0) / self.T_S)
         u = _U_NODES[_U_NODES > u_end]
         extra = [u_end]
+        if len(u) < MIN_NODES:  # a horizon short against t_FS: still resolve it
+            extra.extend(np.linspace(u_end, 1.0, MIN_NODES))
         u_rot = 1.0 - self.T_R / self.T_S
         if u_end < u_rot < 1.0:
             extra.append(u_rot)
         u = np.unique(np.concatenate([u, extra]))[::-1]  # descending u = ascending t
         tn = self.t0 + self.T_S * (1.0 - u)
-        tn[0], tn[-1] = self.t0, self.t_end
-        h = np.diff(tn)
-        keep = np.concatenate([[True], h > 0])
-        tn = tn[keep]
+        tn[0], tn[-1] = self.t0, t_grid
+        tn = tn[np.concatenate([[True], np.diff(tn) > 0])]
+        for _ in range(4):  # refine where the heading turns fast (circling rocks)
+            self._integrate(tn)
+            dpsi = np.abs(np.diff(self.psi))
+            if dpsi.max(initial=0.0) <= MAX_DPSI or len(tn) > MAX_NODES:
+                break
+            k = np.maximum(1, np.ceil(dpsi / MAX_DPSI)).astype(int)
+            tn = np.concatenate([np.linspace(a, b, m, endpoint=False)
+                                 for a, b, m in zip(tn[:-1], tn[1:], k)] + [tn[-1:]])
+        self.x_end, self.y_end = self.pos[-1]
+        self.psi_end = self.psi[-1]
+
+    def _integrate(self, tn):
+        """Heading and position at the nodes ``tn`` (Gauss-Legendre + Hermite)."""
         h = np.diff(tn)
         t_rot_stop = self.t0 + self.T_R
         spinning = ((tn[:-1] + 0.5 * h) < t_rot_stop).astype(float)  # per interval
@@ -105,8 +124,6 @@ class ClosedSegment:
         self.psi, self.psi_dl, self.psi_dr = psi, d_left, d_right
         self.pos = pos
         self.vel = np.stack([-v_n * np.sin(psi), v_n * np.cos(psi)], axis=-1)
-        self.x_end, self.y_end = pos[-1]
-        self.psi_end = psi[-1]
 
     def y_in_interval(self, j: int, t: float) -> float:
         """y (m) at time ``t`` inside node interval ``j`` (the same interpolant as evaluate)."""
@@ -120,7 +137,8 @@ class ClosedSegment:
         t = np.asarray(t, dtype=float)
         n = t.shape[0]
         out = {k: np.empty(n) for k in ("x", "y", "vx", "vy")}
-        moving = t < self.t_end if self.nodes is not None else np.zeros(n, bool)
+        grid_end = self.nodes[-1] if self.nodes is not None else self.t_end
+        moving = t < grid_end if self.nodes is not None else np.zeros(n, bool)
         if moving.any():
             tm = t[moving]
             tn = self.nodes
@@ -135,8 +153,8 @@ class ClosedSegment:
             out["vx"][moving], out["vy"][moving] = -v * np.sin(psi), v * np.cos(psi)
         rest = ~moving
         if rest.any():
-            if self.t_end < self.t0 + self.T_S:  # cut short by a pick: still moving
-                v_end = float(self.speed(self.t_end))
+            if grid_end < self.t0 + self.T_S:  # cut short by a pick: still moving
+                v_end = float(self.speed(grid_end))
                 vx_e, vy_e = -v_end * math.sin(self.psi_end), v_end * math.cos(self.psi_end)
             else:
                 vx_e = vy_e = 0.0

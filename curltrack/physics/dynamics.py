@@ -62,7 +62,7 @@ def solve(model: ShotModel, effects=(), horizon: float | None = None, method: st
     use_ode = method == "ode" or terms.slope_accel != (0.0, 0.0)
     horizon = MAX_DURATION_S if horizon is None else float(horizon)
     segments = (_ode_segments(model, terms, horizon) if use_ode
-                else _closed_segments(model, terms))
+                else _closed_segments(model, terms, horizon))
     stops = [_stop_time(segments, a) for a in ("t_stop_translation", "t_stop_rotation")]
     # both solvers report a stop beyond the horizon alike: not stopped (inf)
     stops = [s if s <= horizon else math.inf for s in stops]
@@ -79,18 +79,19 @@ def _ode_segments(model, terms, horizon):
     from ._ode import OdeSegment
 
     state = (0.0, 0.0, 0.0, model.v0, 0.0, model.omega0)
-    bounds = [0.0] + [p[0] for p in terms.picks]
+    picks = [p for p in terms.picks if p[0] <= horizon]   # later ones are never seen
+    bounds = [0.0] + [p[0] for p in picks]
     segments = []
     for i, t0 in enumerate(bounds):
         t1 = max(bounds[i + 1] if i + 1 < len(bounds) else horizon, t0)
         seg = OdeSegment(model, terms, t0, state, t1)
         segments.append((t0, t1, seg))
         if i + 1 < len(bounds):
-            state = _after_pick(seg.evaluate(np.array([t1])), terms.picks[i])
+            state = _after_pick(seg.evaluate(np.array([t1])), picks[i])
     return segments
 
 
-def _closed_segments(model, terms):
+def _closed_segments(model, terms, horizon):
     """Closed-form pieces, cut at picks and where the rock crosses a patch edge.
 
     Inside a piece the friction factor f of the patch under the rock is constant, so the
@@ -101,8 +102,8 @@ def _closed_segments(model, terms):
     edges = sorted({e for p in terms.patches for e in p[:2]})
     alpha_theta = model.alpha_theta_value
     state = (0.0, 0.0, 0.0, model.v0, 0.0, model.omega0)
-    t0, picks, segments = 0.0, list(terms.picks), []
-    for _ in range(10 * len(edges) + len(picks) + 2):  # each edge is crossed at most a few times
+    t0, picks, segments = 0.0, [p for p in terms.picks if p[0] <= horizon], []
+    for _ in range(10000):  # a circling rock may cross an edge many times
         t_pick = picks[0][0] if picks else math.inf
         m = model
         if edges:
@@ -111,7 +112,7 @@ def _closed_segments(model, terms):
             if f != 1.0:
                 m = dataclasses.replace(model, alpha_y=model.alpha_y * f,
                                         alpha_theta=alpha_theta * f)
-        seg = ClosedSegment(m, terms.late_curl, t0, state, max(t_pick, t0))
+        seg = ClosedSegment(m, terms.late_curl, t0, state, max(t_pick, t0), horizon)
         t_cross, edge = _first_crossing(seg, edges) if edges else (math.inf, None)
         if t_cross < t_pick:
             segments.append((t0, t_cross, seg))

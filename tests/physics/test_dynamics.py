@@ -184,6 +184,21 @@ def test_smooth_in_patch_parameters(key, value):
     assert np.abs(d1 - d2).max() < 2e-3 * np.abs(d1).max()
 
 
+@pytest.mark.parametrize("effects", [
+    (Effect("late_curl", {"k": -2.0}),),   # a_T x 25: the heading turns 1.1 rad in 7 s
+    (Effect("friction_patch", {"y_start_m": 0.0, "y_end_m": 0.0, "factor": 1.0}),),
+])
+def test_fast_turning_long_shot_regressions(effects):
+    """Found by the property test: a slow-decelerating shot (t_FS ~ 4000 s) that turns fast
+    and crosses its start line many times; both solvers must agree over the horizon."""
+    m = ShotModel(v0=5.0, omega0=14.0, phi_y=-2.0, alpha_y=0.001, phi_theta=0.0,
+                  alpha_theta=0.03125, a_T=0.03125)
+    t = np.linspace(0, 40, 81)
+    a, b = simulate(m, effects, t=t), simulate(m, effects, t=t, method="ode")
+    np.testing.assert_allclose(a.x, b.x, atol=1e-6)
+    np.testing.assert_allclose(a.y, b.y, atol=1e-6)
+
+
 def test_times_in_any_order_and_deterministic():
     m = ShotModel(v0=2.0, omega0=1.5)
     t = np.array([20.0, 0.0, 5.5, 26.0, 30.0])
