@@ -46,8 +46,8 @@ def solve(model: ShotModel, effects=(), horizon: float | None = None, method: st
     """Integrate a shot once; return ``(segments, t_stop_translation, t_stop_rotation)``.
 
     ``segments`` is a list of ``(t_start, t_end, segment)`` whose ``evaluate(t)`` gives
-    the state.  Integration runs until both motions have stopped (and past the last
-    pick), but not beyond ``horizon`` for the ODE path (default :data:`MAX_DURATION_S`).
+    the state for ``0 <= t <= horizon`` (s; default :data:`MAX_DURATION_S`); nothing is
+    integrated beyond it, picks after it are ignored and stops after it are ``inf``.
     """
     if not isinstance(model, ShotModel):
         raise ParameterError(f"expected a ShotModel, got {type(model).__name__}", where="model")
