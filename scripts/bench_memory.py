@@ -1,0 +1,139 @@
+#!/usr/bin/env python
+"""Long runs in bounded memory: peak RSS of `curltrack track` at several video lengths.
+
+A short 1080p shot is rendered once; longer videos are made from it by holding the rock
+at rest (its last frame repeated, as when a camera is left running after the stop), so
+the frames are cheap to make but every one is decoded and tracked.  Each length is
+tracked by the real command in a child process; its peak resident memory comes from the
+kernel's accounting of that child (``wait4``).  Memory must not grow with the length:
+the frames are streamed, and only a small record per frame is kept.
+
+Usage::
+
+    scripts/bench_memory.py                       # 0.5 and 2 minutes at 1920x1080
+    scripts/bench_memory.py --minutes 1 10        # the 10-minute case (slow: ~real time)
+    scripts/bench_memory.py --size 960x540 --minutes 0.25 1 --json bench_memory.json
+
+Prints one line per length (frames, wall s, tracked fps, peak RSS MB) and the growth of
+the peak RSS per extra minute of video; exit status 1 when it grows by more than
+``--max-growth-mb-per-min`` (default 8 MB/min).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def render_base(out_dir: Path, size, fps: float, seed: int = 0):
+    """A short draw (about 3 s) rendered at ``size``; returns (video, rig path)."""
+    from curltrack.physics.shot import ShotModel
+    from curltrack.render import RenderConfig, render_video
+    from curltrack.rig import default_rig
+    from curltrack.simulate import simulate_series
+
+    rig = default_rig()
+    sim = simulate_series(ShotModel(v0=0.9, omega0=1.5, alpha_y=0.03), fps=fps, tail_s=0.2)
+    video = out_dir / "base.mp4"
+    render_video(sim, rig, video, out_dir / "base.truth.csv",
+                 config=RenderConfig(width=size[0], height=size[1], fps=fps,
+                                     stopped_tail_s=0.2, blur_subframes=2), seed=seed)
+    rig_path = out_dir / "rig.toml"
+    rig_path.write_text(rig.to_toml())
+    return video, rig_path
+
+
+def make_long(base: Path, out: Path, n_frames: int, fps: float) -> Path:
+    """``base`` followed by its last frame held until ``n_frames`` frames (streamed)."""
+    import cv2
+
+    cap = cv2.VideoCapture(str(base))
+    writer, last, k = None, None, 0
+    while k < n_frames:
+        ok, img = cap.read()
+        if not ok:
+            break
+        if writer is None:
+            h, w = img.shape[:2]
+            writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
+        writer.write(img)
+        last, k = img, k + 1
+    cap.release()
+    while k < n_frames:
+        writer.write(last)
+        k += 1
+    writer.release()
+    return out
+
+
+def track_peak_rss(video: Path, rig: Path, out_csv: Path) -> dict:
+    """Run `curltrack track` in a child; its wall time and peak RSS (MB)."""
+    cmd = [sys.executable, "-m", "curltrack", "track", str(video), "--rig", str(rig),
+           "-o", str(out_csv), "--no-progress", "-q"]
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    err = proc.stderr.read().decode(errors="replace").strip()
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise SystemExit(f"track failed on {video}: {err}")
+    scale = 1024.0 if sys.platform != "darwin" else 1024.0 ** 2  # ru_maxrss: KB (Linux)
+    return {"wall_s": wall, "peak_rss_mb": usage.ru_maxrss / scale,
+            "cpu_s": usage.ru_utime + usage.ru_stime}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--minutes", type=float, nargs="+", default=[0.5, 2.0],
+                    help="Video lengths to track (min), at least two.")
+    ap.add_argument("--size", default="1920x1080", help="Frame size WxH (px).")
+    ap.add_argument("--fps", type=float, default=30.0)
+    ap.add_argument("--workdir", type=Path, default=None,
+                    help="Keep the videos here (default: a temporary folder).")
+    ap.add_argument("--json", type=Path, default=None, help="Write the results as JSON.")
+    ap.add_argument("--max-growth-mb-per-min", type=float, default=8.0)
+    args = ap.parse_args(argv)
+    if len(args.minutes) < 2:
+        ap.error("give at least two lengths")
+    size = tuple(int(v) for v in args.size.lower().split("x"))
+    with tempfile.TemporaryDirectory() as tmp:
+        work = args.workdir or Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        base, rig = render_base(work, size, args.fps)
+        print(f"rendered the base shot at {size[0]}x{size[1]} in "
+              f"{time.perf_counter() - t0:.1f} s", flush=True)
+        rows = []
+        for minutes in sorted(args.minutes):
+            n = int(round(minutes * 60 * args.fps))
+            video = make_long(base, work / f"long_{n}.mp4", n, args.fps)
+            r = track_peak_rss(video, rig, work / f"long_{n}.csv")
+            import pandas as pd
+
+            n_rows = len(pd.read_csv(work / f"long_{n}.csv"))
+            r.update(minutes=minutes, frames=n, rows=n_rows, fps_tracked=n / r["wall_s"])
+            rows.append(r)
+            print(f"{minutes:6.2f} min  {n:6d} frames  {r['wall_s']:7.1f} s wall  "
+                  f"{r['fps_tracked']:6.1f} frames/s  peak RSS {r['peak_rss_mb']:7.1f} MB",
+                  flush=True)
+            video.unlink()
+    a, b = rows[0], rows[-1]
+    growth = (b["peak_rss_mb"] - a["peak_rss_mb"]) / max(b["minutes"] - a["minutes"], 1e-9)
+    ok = growth <= args.max_growth_mb_per_min and all(r["rows"] == r["frames"] for r in rows)
+    print(f"peak RSS growth: {growth:+.1f} MB per extra minute of video "
+          f"({'flat' if ok else 'GROWS'}; limit {args.max_growth_mb_per_min:g} MB/min)")
+    if args.json:
+        args.json.write_text(json.dumps({"size": list(size), "fps": args.fps, "runs": rows,
+                                         "growth_mb_per_min": growth, "ok": ok}, indent=2))
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
