@@ -3,8 +3,8 @@
 A light pass over the video (frames downscaled to at most :data:`MAX_WIDTH` px wide)
 measures, per frame, the rock's markers (the tracker's colour model,
 :class:`~curltrack.track.markers.MarkerDetector`) and the image shift of the ice and
-thread background (phase correlation), so that a camera that slides or pans along
-with the rock is allowed for: the rock's motion on the ice is its image motion minus the
+thread background (an ECC fit against a key frame, the rock masked), so that a camera
+that slides or pans along with the rock is allowed for: the rock's motion on the ice is its image motion minus the
 background's.  :func:`segment_motion` then turns the per-frame positions and angles into
 shots:
 
@@ -56,7 +56,7 @@ class ShotSegment:
     motion_end_frame : int
         Last frame in which the rock was seen moving.
     peak_speed_m_s, peak_omega_rad_s : float
-        Speed and spin at release (local-fit estimates).
+        Speed and spin just after release (fits over the first :data:`WINDOW_S`).
     """
 
     shot: int
@@ -153,18 +153,23 @@ def segment_motion(t, xy_m, theta, found, inertia_radius_m: float = 0.14,
     shots = []
     kept = [(a, b) for a, b in merged if t[b] - t[a] >= MIN_SHOT_S and known[a:b + 1].any()]
     for i, (a, b) in enumerate(kept):
-        e = energy[a:b + 1]
+        # Energy from forward-looking fits (frames k .. k + 2h): at the release frame the
+        # window holds only free motion, one frame earlier it holds a frame of rest.
+        lo = max(0, a - half)
+        e = np.full(b + 1 - lo, -1.0)
+        e[: max(0, n - half - lo)] = energy[lo + half: b + 1 + half][: len(e)]
+        e[~known[lo: b + 1]] = -1.0  # the release frame itself must be seen
         if e.max() < 0:
             continue
-        # First frame near the peak energy: a released rock only slows down, and near
-        # the release the energy is too flat for its argmax to be stable under noise.
-        rel = a + int(np.argmax(e >= 0.8 * e.max()))
+        # First frame near the peak: a released rock only slows down, and near the
+        # release the energy is too flat for its argmax to be stable under noise.
+        rel = lo + int(np.argmax(e >= 0.8 * e.max()))
         nxt = kept[i + 1][0] if i + 1 < len(kept) else n
         end = min(n - 1, nxt - 1, b + int(round(TAIL_S / dt)))
+        fwd = min(n - 1, rel + half)
         shots.append(ShotSegment(len(shots) + 1, int(start_index + rel),
                                  int(start_index + end), float(t[rel]), float(t[end]),
-                                 int(start_index + b),
-                                 float(v[rel]), float(omega[rel])))
+                                 int(start_index + b), float(v[fwd]), float(omega[fwd])))
     return shots
 
 
@@ -174,14 +179,79 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1))
 
 
+def _bandpass(gray: np.ndarray) -> np.ndarray:
+    """Keep threads and ice texture; drop shading (vignetting, glare) and codec blocks."""
+    import cv2
+
+    return cv2.GaussianBlur(gray, (0, 0), 1.5) - cv2.GaussianBlur(gray, (0, 0), 8.0)
+
+
+class _BackgroundShift:
+    """Image shift of the ice + threads against a key frame (ECC, translation, rock masked).
+
+    Consecutive-frame phase correlation underestimates the ~1 px/frame shifts of a
+    following camera (static codec blocks pull it to zero); an ECC fit against a key
+    frame, started from the last estimate, does not accumulate that bias.  The key is
+    renewed every few percent of the frame's size; a fit that jumps further than a
+    camera moves between frames is replaced by the constant-velocity guess.
+    """
+
+    def __init__(self, scale: float):
+        self.scale, self.key, self.key_off = scale, None, np.zeros(2)
+        self.warp = np.eye(2, 3, dtype=np.float32)
+        self.step = np.zeros(2, np.float32)
+
+    def update(self, gray: np.ndarray, rock_xy, rock_r) -> np.ndarray:
+        import cv2
+
+        g = cv2.resize(gray, None, fx=self.scale, fy=self.scale,
+                       interpolation=cv2.INTER_AREA) if self.scale != 1 else gray
+        g = _bandpass(g)
+        if self.key is None:
+            self._rekey(g, rock_xy, rock_r)
+            return self.key_off.copy()
+        mask = self.mask.copy()
+        if rock_xy is not None:  # the rock's current place, seen from the key frame
+            c = (np.asarray(rock_xy) - self.key_off) * self.scale
+            cv2.circle(mask, (int(c[0]), int(c[1])), int(rock_r * self.scale), 0, -1)
+        guess = self.warp.copy()
+        guess[:, 2] += self.step  # constant velocity
+        try:
+            _, warp = cv2.findTransformECC(
+                self.key, g, guess.copy(), cv2.MOTION_TRANSLATION,
+                (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-4), mask, 1)
+        except cv2.error:  # no convergence (a blank or blurred frame)
+            warp = guess
+        if np.hypot(*(warp[:, 2] - guess[:, 2])) > 0.05 * min(g.shape):
+            warp = guess  # a jump no camera makes between frames: ECC slipped
+        self.step = warp[:, 2] - self.warp[:, 2]
+        self.warp = warp
+        shift = self.key_off + self.warp[:, 2] / self.scale
+        if np.abs(self.warp[:, 2]).max() > 0.08 * min(g.shape):
+            self._rekey(g, rock_xy, rock_r, shift)
+        return shift
+
+    def _rekey(self, g, rock_xy, rock_r, offset=None):
+        import cv2
+
+        self.key = g
+        self.key_off = np.zeros(2) if offset is None else np.asarray(offset, float)
+        self.warp = np.eye(2, 3, dtype=np.float32)
+        self.mask = np.full(g.shape, 255, np.uint8)
+        if rock_xy is not None:
+            c = np.asarray(rock_xy) * self.scale
+            cv2.circle(self.mask, (int(c[0]), int(c[1])), int(rock_r * self.scale), 0, -1)
+
+
 def measure_motion(video, rig, progress: bool = False) -> dict:
     """One light pass over a video: rock position on the ice (m) and angle per frame.
 
     Returns
     -------
     dict
-        ``t`` (s), ``xy_m`` (N, 2), ``theta`` (rad), ``found`` (bool), ``fps``,
-        ``px_per_m`` (at the marker plane, downscaled frames), ``index0``.
+        ``t`` (s), ``xy_m`` (N, 2; image axes, y up, scaled at the marker plane),
+        ``theta`` (rad, CCW from above), ``found`` (bool), ``fps``, ``px_per_m``
+        (marker plane, downscaled frames), ``index0``.
 
     Raises
     ------
@@ -199,47 +269,45 @@ def measure_motion(video, rig, progress: bool = False) -> dict:
     scale = min(1.0, MAX_WIDTH / info.width)
     det = MarkerDetector(rig)
     M = len(rig.markers)
+    layout = np.array([[m.x_m, m.y_m] for m in rig.markers])
+    dist = np.linalg.norm(layout[:, None] - layout[None], axis=2)
+    i, j = np.unravel_index(np.argmax(dist), dist.shape)
+    rock_per_sep = 0.75 * rig.rock_diameter_m / dist[i, j]  # masked radius / separation
     n = info.n_frames
     t, shift = np.zeros(n), np.zeros((n, 2))
     pts = np.full((n, M, 2), np.nan)
-    prev, window, pred, count = None, None, None, 0
+    bg = _BackgroundShift(0.5 if scale * info.width > 400 else 1.0)
+    pred, count = None, 0
     for k, fr in enumerate(iter_frames(video, fps_override=rig.fps)):
         img = fr.image if scale == 1.0 else cv2.resize(fr.image, None, fx=scale, fy=scale,
                                                        interpolation=cv2.INTER_AREA)
-        gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float32)
-        if window is None:
-            window = cv2.createHanningWindow(gray.shape[::-1], cv2.CV_32F)
-        if prev is not None:
-            (dx, dy), _ = cv2.phaseCorrelate(prev, gray, window)
-            shift[k] = shift[k - 1] + (dx, dy)
-        prev = gray
         mf = None
         if pred is not None:
-            r = 0.4 * np.ptp(pred, axis=0).max() + 30
+            r = 0.6 * np.ptp(pred, axis=0).max() + 20
             lo, hi = pred.min(axis=0) - r, pred.max(axis=0) + r
             mf = det.detect(img, predicted=pred, roi=(lo[0], lo[1], hi[0], hi[1]))
         if mf is None or not mf.found.all():
             mf = det.detect(img)
-        t[k] = fr.t
+        rock_xy, rock_r = None, 0.0
         if mf.found.all():
-            pts[k] = mf.xy_px
-            pred = mf.xy_px
+            pts[k] = pred = mf.xy_px
+            rock_xy = mf.xy_px.mean(axis=0)
+            rock_r = rock_per_sep * float(np.linalg.norm(mf.xy_px[i] - mf.xy_px[j]))
+        gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float32)
+        shift[k] = bg.update(gray, rock_xy, rock_r)
+        t[k] = fr.t
         count = k + 1
     t, shift, pts = t[:count], shift[:count], pts[:count]
     found = np.isfinite(pts).all(axis=(1, 2))
     if found.sum() < 3:
         raise TrackingError("the rock's markers are never seen together (check the rig's "
                             "marker colours)", path=video)
-    layout = np.array([[m.x_m, m.y_m] for m in rig.markers])
-    i, j = np.unravel_index(np.argmax(np.linalg.norm(layout[:, None] - layout[None], axis=2)),
-                            (M, M))
     sep_px = np.linalg.norm(pts[found, i] - pts[found, j], axis=1)
-    px_per_m = float(np.median(sep_px) / np.linalg.norm(layout[i] - layout[j]))
+    px_per_m = float(np.median(sep_px) / dist[i, j])
     centre = pts.mean(axis=1) - shift
     d = pts[:, j] - pts[:, i]
-    ang = -np.arctan2(d[:, 1], d[:, 0])  # image y is down: CCW seen from above
     theta = np.full(count, np.nan)
-    theta[found] = np.unwrap(ang[found])
+    theta[found] = np.unwrap(-np.arctan2(d[found, 1], d[found, 0]))  # image y is down
     xy = centre / px_per_m * (1.0, -1.0)
     return {"t": t, "xy_m": xy, "theta": theta, "found": found, "fps": info.fps,
             "px_per_m": px_per_m, "index0": 0}
