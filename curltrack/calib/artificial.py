@@ -151,10 +151,12 @@ def draw_lattice(cam: PinholeCamera, spacing_x_m: float = 0.15, spacing_y_m: flo
     img = np.tile(np.asarray(ice_rgb, float), (len(px), 1))
     if texture:
         # Smooth texture attached to the ice (moves with it): sum of random sinusoids.
-        k = rng.normal(0, 1, (12, 2)) * 8.0
-        ph = rng.uniform(0, 2 * np.pi, 12)
-        tex = np.sin(w @ k.T + ph).sum(axis=1) * texture / np.sqrt(12)
-        img += tex[:, None]
+        k = rng.normal(0, 1, (8, 2)) * 8.0
+        ph = rng.uniform(0, 2 * np.pi, 8)
+        tex = np.zeros(len(w))
+        for (kx, ky), p in zip(k, ph):
+            tex += np.sin(w[:, 0] * kx + w[:, 1] * ky + p)
+        img += (tex * texture / np.sqrt(8))[:, None]
     half = thread_width_m / 2
     px_per_m = cam.f * ss / cam.position[2]
     for fam, (coord, sp) in enumerate(((w[:, 0], spacing_x_m), (w[:, 1], spacing_y_m))):
@@ -162,9 +164,10 @@ def draw_lattice(cam: PinholeCamera, spacing_x_m: float = 0.15, spacing_y_m: flo
         d = np.abs(coord - idx * sp)
         # Box-filtered coverage of a pixel by the thread (px per m ~ f / height).
         on = np.clip((half - d) * px_per_m + 0.5, 0.0, 1.0)
-        col = np.asarray(colors, float)[idx.astype(int) % len(colors)]
-        a = contrast * on[:, None]
-        img = img * (1 - a) + col * a
+        sel = np.nonzero(on > 0)[0]
+        col = np.asarray(colors, float)[idx[sel].astype(int) % len(colors)]
+        a = contrast * on[sel, None]
+        img[sel] = img[sel] * (1 - a) + col * a
     if rock is not None:
         top = cam.image_to_plane(px, z=rock["height"])
         rc = np.asarray(rock["center"], float)

@@ -366,15 +366,14 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
     q = (undistort(xy, K, dist) - c) / f
     fam_a, fam_b = fam == 0, fam == 1
     ia = ib = idx.astype(float)
-    info = {}
-    scale = clip_px
-    for _ in range(iterations):
+    na = int(fam_a.sum())
+    w0 = np.concatenate([w[fam_a], w[fam_b]])
+    for it in range(iterations):
         pa, pb = periods_px(Hc, f)
         r = _residuals(Hc, q, fam_a, fam_b, ia, ib, pa, pb)
-        ww = np.concatenate([w[fam_a], w[fam_b]])
+        ww = w0.copy()
         # Tukey weights about each family's median residual (a common shift of a family
         # is the correction sought, not an outlier), scale from the MAD
-        na = int(fam_a.sum())
         for part in (slice(0, na), slice(na, None)):
             rp = r[part]
             if rp.size:
@@ -387,15 +386,13 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
         A += 1e-9 * np.trace(A) * np.eye(8)
         step = np.linalg.solve(A, -JW.T @ r)
         Hc = Hc + np.append(step, 0.0).reshape(3, 3)
-        used = ww > 0
-        rms = float(np.sqrt(np.sum(ww * r * r) / max(ww.sum(), 1e-12)))
-        # 1-sigma of the translation terms h2, h5 (cells) -> px at the image centre
-        dof = max(int(used.sum()) - 8, 1)
-        cov = np.linalg.inv(A) * np.sum(ww * r * r) / dof
-        sig = float(np.sqrt(cov[2, 2] * pa ** 2 + cov[5, 5] * pb ** 2))
-        info = {"rms_px": rms, "n_a": int(np.sum(used[:fam_a.sum()])),
-                "n_b": int(np.sum(used[fam_a.sum():])),
-                "lines_a": int(len(np.unique(ia[fam_a][used[:fam_a.sum()]]))),
-                "lines_b": int(len(np.unique(ib[fam_b][used[fam_a.sum():]]))),
-                "sigma_px": sig}
+    used = ww > 0
+    chi2 = float(np.sum(ww * r * r))
+    # 1-sigma of the translation terms h2, h5 (cells) -> px at the image centre
+    cov = np.linalg.inv(A) * chi2 / max(int(used.sum()) - 8, 1)
+    info = {"rms_px": float(np.sqrt(chi2 / max(ww.sum(), 1e-12))),
+            "n_a": int(used[:na].sum()), "n_b": int(used[na:].sum()),
+            "lines_a": int(len(np.unique(ia[fam_a][used[:na]]))),
+            "lines_b": int(len(np.unique(ib[fam_b][used[na:]]))),
+            "sigma_px": float(np.sqrt(cov[2, 2] * pa ** 2 + cov[5, 5] * pb ** 2))}
     return Hc, info

@@ -36,7 +36,7 @@ def _lattice_to_px(Hc_inv, K, dist, ab):
 
 
 def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0,
-                   mask=None, colors_known: bool = False, margin_px: float = 3.0,
+                   mask=None, margin_px: float = 3.0,
                    gap_px=(4.0, 4.0), blur_px=(0.0, 0.0), seg_px: float = 40.0):
     """Sub-pixel thread points of a frame near the predicted lattice ``Hc``.
 
@@ -59,16 +59,13 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         (thread width plus motion blur).
     blur_px : (float, float)
         Expected motion-blur length across the threads of family A / B (px): the
-        profiles are smoothed by a box this long (a matched filter for the smeared,
-        ghosted copies of a thread that a moving camera records).
+        threads are found on profiles smoothed by a box a quarter this long, and
+        averaged over whole threads when it exceeds 6 px (a smeared thread is faint).
     seg_px : float
         Length (px) of thread over which consecutive profiles are averaged into one
-        point (longer in proportion to the blur).
+        point.
     mask : (H, W) uint8, optional
         Nonzero = ignore.
-    colors_known : bool
-        Project on the colour that thread ``i`` must have (``i mod n``); otherwise on the
-        best-matching colour.
 
     Returns
     -------
@@ -132,24 +129,27 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
                                            idx[inside], half[inside], along[inside])
     if len(centre) == 0:
         return None
-    n_s = int(np.ceil(max(half_px))) * 2 + 1
+    dt_px = max(1.0, max(half_px) / 10.0)  # <= 21 samples per profile
+    n_s = int(np.ceil(max(half_px) / dt_px)) * 2 + 1
     t = np.linspace(-1.0, 1.0, n_s)[None, :] * half[:, None]  # px along the normal
     mx = (centre[:, 0:1] + t * dirv[:, 0:1]).astype(np.float32)
     my = (centre[:, 1:2] + t * dirv[:, 1:2]).astype(np.float32)
-    prof = cv2.remap(image_bgr, mx, my, cv2.INTER_LINEAR).astype(np.float32)  # (N, S, 3)
-    base0 = prof[:, :2].mean(axis=1)
-    base1 = prof[:, -2:].mean(axis=1)
-    frac = np.linspace(0.0, 1.0, n_s)[None, :, None]
-    diff = prof - (base0[:, None] * (1 - frac) + base1[:, None] * frac)
+    prof = cv2.remap(image_bgr, mx, my, cv2.INTER_LINEAR)  # (N, S, 3) uint8
+    frac = np.linspace(0.0, 1.0, n_s, dtype=np.float32)[None, :]
     if model.directions is None:
+        pf = prof.astype(np.float32)
+        b0, b1 = pf[:, :2].mean(axis=1), pf[:, -2:].mean(axis=1)
+        diff = pf - (b0[:, None] * (1 - frac[..., None]) + b1[:, None] * frac[..., None])
         sig = np.sqrt(diff[:, :, 0] ** 2 + diff[:, :, 1] ** 2 + diff[:, :, 2] ** 2)
-        proj_all = None
     else:
-        proj_all = diff @ model.directions.T.astype(np.float32)  # (N, S, k)
-        if colors_known:
-            sig = proj_all[np.arange(len(idx)), :, idx % model.directions.shape[0]]
-        else:
-            sig = np.maximum.reduce([proj_all[:, :, i] for i in range(proj_all.shape[2])])
+        # One linear projection on the mean contrast direction of the thread colours for
+        # finding the threads (the colours are told apart later, at the peaks only).
+        d = model.directions.mean(axis=0)
+        d = (d / np.linalg.norm(d)).astype(np.float32)
+        raw = cv2.transform(prof.reshape(-1, 1, 3).astype(np.float32), d[None, :])
+        raw = raw.reshape(len(prof), n_s)
+        b0, b1 = raw[:, :2].mean(axis=1), raw[:, -2:].mean(axis=1)
+        sig = raw - (b0[:, None] * (1 - frac) + b1[:, None] * frac)
     # Average consecutive profiles of a thread over segments (longer when blurred: a
     # smeared thread is faint in any one profile but straight over a long stretch).
     # (a thread smeared over more than a few px is too faint for short segments: whole
@@ -171,7 +171,8 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     sig = group(sig) / counts[:, None]
     mid = order[starts + counts // 2]  # a profile on the (curved) thread, mid-segment
     centre, dirv = centre[mid], dirv[mid]
-    proj_g = None if proj_all is None else group(proj_all)
+    member_group = np.empty(len(key), np.int64)
+    member_group[order] = np.repeat(np.arange(len(starts)), counts)
     fam, idx, t = fam[first], idx[first], t[first]
     # Find the thread on a copy smoothed by the blur length (merges the ghosts of a
     # smeared thread), take the centroid of the unsmoothed signal over the run found.
@@ -214,7 +215,16 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     edge_peak = (kpk <= 1) | (kpk >= n_s - 2)
     sel = (peak > np.maximum(4.0 * noise, rel_floor)[fam]) & ~edge_peak
     xy = centre + off[:, None] * dirv
-    colour = None if proj_g is None else proj_g[np.arange(len(kpk)), kpk]
+    colour = None
+    if model.directions is not None:
+        # contrast (BGR) of each member profile at its group's peak, projected on each
+        # thread colour's direction, summed over the group
+        kk = kpk[member_group]
+        rows = np.arange(len(prof))
+        pk = prof[rows, kk].astype(np.float32)
+        ends = 0.5 * (prof[:, :2].astype(np.float32).mean(axis=1)
+                      + prof[:, -2:].astype(np.float32).mean(axis=1))
+        colour = group((pk - ends) @ model.directions.T.astype(np.float32))
     noise = float(np.max(noise))
     return {"xy": xy[sel], "w": area[sel], "fam": fam[sel], "idx": idx[sel],
             "colour": None if colour is None else colour[sel], "noise": noise,

@@ -18,10 +18,11 @@ import numpy as np
 from .grid import Calibration, PlaneMap, cells_from_metric, colour_phase, metric_from_cells
 from .lattice import fit_points, periods_px
 from .profiles import sample_threads
-from .lens import apply_h, undistort
+from .lens import apply_h
 
 AMBIGUOUS_CELLS = 0.35  # unexplained jump (cells) beyond which the index is not trusted
-PROFILE_STEP_PX = 14.0  # spacing of the cross profiles along each thread (px)
+PROFILE_STEP_PX = 18.0  # spacing of the cross profiles along each thread (px)
+COLOUR_CHECK_EVERY = 10  # frames between routine checks of the thread colour sequence
 COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap
 SHUTTER = 0.5  # assumed exposure (fraction of a frame) for the motion-blur filter
 
@@ -136,8 +137,10 @@ class GridTracker:
             Hc, _ = fit_points(obs["xy"], obs["w"], obs["fam"], obs["idx"], Hc, self.K,
                                self.dist, iterations=2, clip_px=4.0)
         # Profile half-lengths: prediction error plus motion blur across the threads.
-        base = 5.0 if coarse else 8.0
-        half = [min(base + 0.5 * blur[j], 0.4 * p) for j, p in enumerate(periods_px(Hc, f))]
+        # (the smear of a thread is shutter x motion long: +-0.25 x motion for a half-open
+        # shutter; 0.3 leaves room for a longer exposure)
+        base = 5.0 if coarse else 6.0
+        half = [min(base + 0.3 * blur[j], 0.4 * p) for j, p in enumerate(periods_px(Hc, f))]
         obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model, half,
                              step_px=PROFILE_STEP_PX, mask=mask, gap_px=gap,
                              blur_px=SHUTTER * blur)
@@ -182,8 +185,8 @@ class GridTracker:
                 continue
             moved = np.abs(apply_h(Hc, np.zeros((1, 2)))[0]
                            - apply_h(Hc_pred, np.zeros((1, 2)))[0]) * periods_px(Hc, f)
-            # without the coarse snap the profiles only see +-8 px around the prediction
-            if attempt or (moved.max() < 5.0 and info["ok_fraction"] > 0.6):
+            # without the coarse snap the profiles only see +-6 px around the prediction
+            if attempt or (moved.max() < 4.0 and info["ok_fraction"] > 0.6):
                 break
         if info is None:
             # Threads half a cell from where they were predicted sit at the ends of the
@@ -199,7 +202,12 @@ class GridTracker:
             return failed("grid not visible (fewer than 2 threads in a family)")
         jump = apply_h(Hc, np.zeros((1, 2)))[0] - apply_h(Hc_pred, np.zeros((1, 2)))[0]
         n = self.calib.n_colors if self.calib.colors_resolved else 0
-        k, note, ambiguous, confirmed = self._colour_correction(obs, jump, n)
+        # The colours are read when the index could have slipped (a coarse snap, a large
+        # correction) and every COLOUR_CHECK_EVERY frames as a confirmation.
+        if attempt or np.abs(jump).max() > 0.15 or index % COLOUR_CHECK_EVERY == 0:
+            k, note, ambiguous, confirmed = self._colour_correction(obs, jump, n)
+        else:
+            k, note, ambiguous, confirmed = np.zeros(2), "", False, [False, False]
         Hc = np.array([[1.0, 0, k[0]], [0, 1.0, k[1]], [0, 0, 1]]) @ Hc
         jump = jump + k
         H = metric_from_cells(Hc, K, self.sx, self.sy)
