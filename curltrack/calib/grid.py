@@ -5,8 +5,20 @@ along the two thread families, right-handed seen from above (x, y, up).  ``x`` g
 across the threads that run along ``y`` (spacing ``rig.spacing_x_m``).  When the two
 spacings are equal, ``+y`` is the family closest to the image's up direction in the
 calibration frame.  Origin: a thread crossing near the image centre; with rig colours,
-one whose two threads both have the first colour (so thread ``i`` of either family has
-colour ``colors[i % n]``).
+one whose two threads both have the first colour (thread ``i`` of a family has colour
+``colors[(sign * i) % n]``, ``sign`` = ``Calibration.color_signs``: which way the rig's
+colour order runs is learnt from the frame).
+
+The homographies map to the plane of the threads.  With ``[grid].depth_m`` > 0 that plane
+lies ``depth_m / 1.31`` (refraction by the ice) below the surface, so a point on the
+surface is seen as if (H + depth_m / 1.31) / H further from the nadir; the parallax
+correction of the rock (tracking) accounts for the marker plane the same way.
+
+Steps: thread response (matched colour filter, :mod:`.response`) -> two periodic
+families from the spectrum and the autocorrelation (:func:`.lattice.initial_lattice`,
+paired by the rig's cell ratio) -> robust fit of the lattice homography to every thread
+pixel with k1, k2 and the distortion centre, growing from the image centre
+(:func:`.lattice.fit_lattice`) -> axes, colours, origin (:func:`_to_metric`).
 """
 
 from __future__ import annotations

@@ -1,12 +1,22 @@
 """Follow the lattice from frame to frame with a continuous absolute cell index.
 
-Per frame: predict the homography from the previous poses (constant velocity of the
-view over the ice), snap the fractional lattice phase to the threads (circular mean of
-the thread pixels' cell coordinates), refine the homography on all thread pixels, then
-check the integer cell index against the thread colour sequence.  When the index
-cannot be resolved (the view moved close to half a cell more than predicted and the
-colours cannot tell) the pose is returned with ``ok = False`` and a message rather
-than silently jumping by a cell.
+Per frame:
+
+1. predict the homography from the last two trusted poses (constant velocity of the
+   view over the ice; the camera follows a smoothly decelerating rock);
+2. measure the threads on short cross profiles where the prediction puts them
+   (:func:`.profiles.sample_threads`) and refit the homography to those points
+   (:func:`.lattice.fit_points`).  When the motion has not been smooth (start, after a
+   lost frame, a jerk) or the threads are not where predicted, a coarse pass first, with
+   profiles spanning almost a whole cell, snaps to the nearest lattice alignment;
+3. check the integer cell index: the snap's correction relative to the prediction must
+   stay below ``AMBIGUOUS_CELLS`` unless the thread colour sequence confirms the index
+   (or says by how many cells it slipped, when only one shift fits the motion).
+
+Otherwise the pose is returned with ``ok = False`` and a message, never a silent jump by
+a cell; the next frames are predicted from the last trusted poses.  Motion blur across
+a family of threads (the camera moves up to ~0.1 m per frame) is handled by longer
+profiles, a blur-length detection filter and averaging along whole threads.
 """
 
 from __future__ import annotations
