@@ -33,6 +33,8 @@ __all__ = ["MarkerDetector", "MarkerFrame", "lab_of_rgb"]
 
 _L_WEIGHT = 0.5
 _ADAPT = 0.15  # weight of a new observation in the running marker colour
+_WIN = (1.6, 1.5)
+_FLOOR = 0.1
 
 
 def lab_of_rgb(rgb) -> np.ndarray:
@@ -258,7 +260,7 @@ class MarkerDetector:
         """Coverage-weighted centroid around a blob; (xy, sigma, area, contrast) or None."""
         H, W = image_bgr.shape[:2]
         r = max(1.5, np.sqrt(c_area / np.pi))
-        R_in, R_out = 1.6 * r + 1.5, 2.4 * r + 3.0
+        R_in, R_out = _WIN[0] * r + _WIN[1], 2.4 * r + 3.0
         cx, cy = c_xy
         if min(cx, cy, W - 1 - cx, H - 1 - cy) < R_in:
             return None  # cut by the image border: its centroid would be biased
@@ -294,7 +296,7 @@ class MarkerDetector:
             if proj is d_c:
                 res = res - (res @ grey)[..., None] * grey
             perp = np.linalg.norm(res, axis=-1)
-            w = np.clip(s, 0.0, 1.0) * (perp < 0.35 * np.sqrt(dd) + 2 * noise)
+            w = np.clip((s - _FLOOR) / (1 - _FLOOR), 0.0, 1.0) * (perp < 0.35 * np.sqrt(dd) + 2 * noise)
             w = w * (np.hypot(xx - cx, yy - cy) <= R_in)
             sw = w.sum()
             if sw <= 0.5:
