@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import TrackingError
 from .grid import Calibration, PlaneMap, cells_from_metric, colour_phase, metric_from_cells
 from .lattice import fit_points, periods_px
 from .profiles import sample_threads
@@ -180,6 +181,11 @@ class GridTracker:
         """
         K, dist = self.K, self.dist
         f = K[0, 0]
+        shape = getattr(image_bgr, "shape", ())
+        if shape[:2] != (self.calib.height, self.calib.width) or len(shape) != 3:
+            raise TrackingError(f"frame size {shape} differs from the calibration's "
+                                f"{self.calib.width}x{self.calib.height} BGR",
+                                where=f"frame {index}")
         H_pred = self._predict(index)
         Hc_pred = cells_from_metric(H_pred, K, self.sx, self.sy)
 

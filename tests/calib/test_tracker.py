@@ -137,3 +137,11 @@ def test_lost_frame_is_reported_and_tracking_recovers():
         assert pose.ok == (i != 3), (i, pose.message)
         if i == 3:
             assert "not visible" in pose.message
+
+
+def test_wrong_frame_size_is_a_clear_error():
+    from curltrack.errors import TrackingError
+
+    cal = calibrate_frame(draw_lattice(PinholeCamera(k1=-0.05)), Rig())
+    with pytest.raises(TrackingError, match="frame 7: frame size"):
+        GridTracker(cal, Rig()).update(np.zeros((100, 100, 3), np.uint8), 7)
