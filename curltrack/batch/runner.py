@@ -75,12 +75,15 @@ def default_workers() -> int:
 
 
 @contextlib.contextmanager
-def open_client(workers: int | None = None, scheduler: str | None = None):
+def open_client(workers: int | None = None, scheduler: str | None = None,
+                timeout_s: float = 15.0):
     """A ``distributed.Client``: to ``scheduler`` (an address) or to a new LocalCluster.
 
     The local cluster has ``workers`` processes (default: one per core) with one thread
     each and BLAS/OpenMP capped at one thread (:data:`~curltrack.batch.shot.THREAD_ENV`),
     so that the workers do not fight over the cores.
+
+    ``timeout_s`` bounds the wait for the scheduler (s).
 
     Raises
     ------
@@ -91,7 +94,7 @@ def open_client(workers: int | None = None, scheduler: str | None = None):
 
     if scheduler:
         try:
-            client = Client(scheduler, timeout="15s")
+            client = Client(scheduler, timeout=f"{timeout_s}s")
         except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(f"cannot connect to the Dask scheduler ({exc})".splitlines()[0],
                              path=scheduler) from None

@@ -7,6 +7,7 @@ and redoing are counted exactly.  The real track + fit path is in test_batch_vid
 from __future__ import annotations
 
 import json
+import socket
 import sys
 from pathlib import Path
 
@@ -132,3 +133,32 @@ def test_empty_folder_and_missing_folder(tmp_path):
         run_batch(tmp_path, default_rig(), tmp_path / "out", client=object())
     with pytest.raises(InputError, match="not a folder"):
         run_batch(tmp_path / "nope", default_rig(), tmp_path / "out", client=object())
+
+
+def test_unreachable_scheduler_is_one_clear_error():
+    from curltrack.batch import open_client
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    with pytest.raises(InputError, match="cannot connect"):
+        with open_client(scheduler=f"tcp://127.0.0.1:{port}", timeout_s=1):
+            pass
+
+
+def test_cli_all_failed_exits_1_with_one_line(tmp_path):
+    from typer.testing import CliRunner
+
+    from curltrack.cli import app
+
+    (tmp_path / "in").mkdir()
+    (tmp_path / "in" / "a.mp4").write_text("not a video")
+    (tmp_path / "rig.toml").write_text(default_rig().to_toml())
+    r = CliRunner().invoke(app, ["batch", str(tmp_path / "in"), "--rig",
+                                 str(tmp_path / "rig.toml"), "-o", str(tmp_path / "out"),
+                                 "--workers", "1"])
+    assert r.exit_code == 1
+    assert "0 done, 0 skipped (already done), 1 failed" in r.output
+    assert r.output.strip().splitlines()[-1].startswith("curltrack: error: all 1 shot(s) failed")
+    assert "Traceback" not in r.output
+    assert pd.read_csv(tmp_path / "out" / "campaign.csv")["status"].tolist() == ["failed"]
