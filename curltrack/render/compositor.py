@@ -53,11 +53,15 @@ class Compositor:
         ice, so it moves against the lattice as the camera moves) as a broad Gaussian.
     flicker : float
         Relative RMS of the frame-to-frame brightness (lamp flicker, auto exposure).
+    demosaic : bool
+        Sample through a Bayer colour filter (B at even rows and columns, R at odd ones),
+        add the noise per photosite, and demosaic (OpenCV bilinear), as a colour sensor
+        does; otherwise add slightly blurred noise to each channel.
     """
 
     def __init__(self, camera: Camera, vignetting: float, read_noise: float,
                  shot_noise_gain: float, jpeg_quality: int | None, rng: np.random.Generator,
-                 glare=None, flicker: float = 0.0):
+                 glare=None, flicker: float = 0.0, demosaic: bool = False):
         self.cam = camera
         W, H = camera.width, camera.height
         uu, vv = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
@@ -79,9 +83,14 @@ class Compositor:
         self.rng = rng
         self.max_step_px = 1.5
         pad = 32
-        self._bank = [cv2.GaussianBlur(rng.standard_normal((H + pad, W + pad, 3),
-                                                           dtype=np.float32), (0, 0), 0.5) * 1.6
-                      for _ in range(4)]
+        self.demosaic = bool(demosaic)
+        if self.demosaic:
+            self._bank = [rng.standard_normal((H + pad, W + pad), dtype=np.float32)
+                          for _ in range(4)]
+        else:  # the blur stands for demosaicing's correlation; 1.6 restores unit RMS
+            self._bank = [cv2.GaussianBlur(rng.standard_normal((H + pad, W + pad, 3),
+                                                               dtype=np.float32), (0, 0), 0.5)
+                          * 1.6 for _ in range(4)]
         self._pad = pad
         self.acc = np.zeros((self.canvas_size[1], self.canvas_size[0], 3), np.float32)
         self.glare = glare
@@ -254,6 +263,16 @@ class Compositor:
         g = cv2.resize(g, (len(cu) * 8, len(cv) * 8), interpolation=cv2.INTER_LINEAR)
         return np.repeat(g[:H, :W, None], 3, axis=2)
 
+    @staticmethod
+    def _mosaic(img: np.ndarray) -> np.ndarray:
+        """The photosite values of a Bayer sensor: B G / G R in each 2x2 cell."""
+        mos = np.empty(img.shape[:2], np.float32)
+        mos[0::2, 0::2] = img[0::2, 0::2, 0]
+        mos[0::2, 1::2] = img[0::2, 1::2, 1]
+        mos[1::2, 0::2] = img[1::2, 0::2, 1]
+        mos[1::2, 1::2] = img[1::2, 1::2, 2]
+        return mos
+
     def _finish(self) -> np.ndarray:
         """Glare, distort, vignette and flicker, noise; the final BGR uint8 frame."""
         img = cv2.remap(self.acc, self.map1, self.map2, cv2.INTER_LINEAR)
@@ -265,6 +284,8 @@ class Compositor:
             gain += self.flicker * (np.sin(2 * np.pi * 0.7 * self._t_mid + self._flicker_phase)
                                     * np.sqrt(0.5) + 0.5 * self.rng.standard_normal())
         cv2.multiply(img, self.vignette3, dst=img, scale=gain)
+        if self.demosaic:
+            img = self._mosaic(img)
         if self.read_noise > 0 or self.gain > 0:
             H, W = img.shape[:2]
             bank = self._bank[int(self.rng.integers(len(self._bank)))]
@@ -277,6 +298,8 @@ class Compositor:
             cv2.multiply(var, noise, dst=var)
             cv2.add(img, var, dst=img)
         out = cv2.convertScaleAbs(cv2.max(img, 0.0))  # rounds, saturates at 255
+        if self.demosaic:
+            out = cv2.cvtColor(out, cv2.COLOR_BayerRG2BGR)  # OpenCV's name for this layout
         if self.jpeg_quality:
             ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(self.jpeg_quality)])
             out = cv2.imdecode(buf, cv2.IMREAD_COLOR)

@@ -36,8 +36,8 @@ class RenderConfig:
     shutter : float
         Exposure time as a fraction of the frame period, default 0.5.
     read_noise, shot_noise_gain : float
-        Sensor noise: sigma^2 = read_noise^2 + shot_noise_gain * I (0-255 levels),
-        defaults 2.0 and 0.08.
+        Sensor noise per photosite: sigma^2 = read_noise^2 + shot_noise_gain * I (0-255
+        levels), defaults 2.0 and 0.08.
     vignetting : float
         Brightness loss in the image corners, default 0.25.
     jpeg_quality : int, optional
@@ -55,6 +55,9 @@ class RenderConfig:
     flicker : float
         Relative RMS of the frame-to-frame brightness (lamp flicker beating with the
         frame rate, auto exposure), default 0.01.
+    demosaic : bool
+        Colour sensor: Bayer mosaic, noise per photosite, bilinear demosaicing (colour
+        fringes on thin threads and small markers), default True.
     occlusion : bool
         A broom head crosses the view above the rock, default False.
     occlusion_t_s : float, optional
@@ -89,6 +92,7 @@ class RenderConfig:
     lamp_height_m: float = 6.0
     glare_spread_rad: float = 0.12
     flicker: float = 0.01
+    demosaic: bool = True
     occlusion: bool = False
     occlusion_t_s: float | None = None
     occlusion_speed_m_s: float = 1.2

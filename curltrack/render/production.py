@@ -146,7 +146,8 @@ class Production:
             lamps = np.c_[self.tex.lamps, np.full(len(self.tex.lamps), -cfg.lamp_height_m)]
             glare = (lamps, cfg.glare, cfg.glare_spread_rad)
         self.comp = Compositor(self.cams[0], cfg.vignetting, cfg.read_noise,
-                               cfg.shot_noise_gain, cfg.jpeg_quality, rng, glare, cfg.flicker)
+                               cfg.shot_noise_gain, cfg.jpeg_quality, rng, glare, cfg.flicker,
+                               cfg.demosaic)
         self._drawn = True
 
     @property
