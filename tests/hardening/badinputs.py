@@ -23,14 +23,20 @@ SIZE = (480, 270)
 def render_clip(out: Path, *, rig: Rig | None = None, v0: float = 0.5, omega0: float = 1.5,
                 size=SIZE, fps: float = 30.0, seed: int = 0, motion: str = "ladder",
                 tail_s: float = 0.3, occlusion: bool = False, offset_m=(0.0, 0.0),
-                view_m: float = 1.2, k1: float = -0.08):
-    """Render a short shot; return (video path, truth Series, rig)."""
+                view_m: float = 1.2, k1: float = -0.08, tilt_deg: float = 1.5,
+                centred: bool = False):
+    """Render a short shot; return (video path, truth Series, rig).
+
+    ``centred``: principal point at the image centre (no random offset), so that turning
+    the image about its centre is a camera turning about its optical axis.
+    """
     from curltrack.render import CameraConfig, RenderConfig, render_video
 
     rig = rig or default_rig()
     sim = simulate_series(ShotModel.from_rig(rig, v0=v0, omega0=omega0, alpha_y=0.03), fps=fps,
                           tail_s=tail_s)
-    cam = CameraConfig(motion=motion, offset_m=tuple(offset_m), view_m=view_m, k1=k1)
+    cam = CameraConfig(motion=motion, offset_m=tuple(offset_m), view_m=view_m, k1=k1,
+                       tilt_deg=tilt_deg, principal_offset_px=(0.0, 0.0) if centred else None)
     cfg = RenderConfig(width=size[0], height=size[1], fps=fps, camera=cam,
                        stopped_tail_s=tail_s, blur_subframes=2, occlusion=occlusion)
     out = Path(out)

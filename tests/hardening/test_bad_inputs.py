@@ -231,7 +231,10 @@ def test_wrong_marker_colours(cli, hdir, good_clip):
 
 @pytest.fixture(scope="session")
 def wide_clip(hdir):
-    return render_clip(hdir / "wide.mp4", size=(640, 360), view_m=1.6, seed=12)
+    # principal point at the centre, no tilt/distortion: turning the frames about their
+    # centre is then exactly a camera turning about its optical axis
+    return render_clip(hdir / "wide.mp4", size=(640, 360), view_m=1.6, seed=12, k1=0.0,
+                       tilt_deg=0.0, centred=True)
 
 
 @pytest.mark.parametrize("rate_deg_per_s", [12.0, -20.0])
@@ -449,3 +452,34 @@ def test_discover_on_one_point(cli, hdir):
     p = _write_csv(hdir / "one.csv", ["0,0,0,0,0,1"])
     out = hdir / "one.report.json"
     cli.fails("discover", p, "-o", out, output=out, names=[p])
+
+
+# --------------------------------------------------------------------------------------
+# frame ranges and single-frame calibration
+
+
+def test_frame_range_outside_the_video(cli, hdir, rig_file, good_clip):
+    video, truth, _ = good_clip
+    n = len(truth.data)
+    out = hdir / "range.csv"
+    cli.fails("track", video, "--rig", rig_file, "-o", out, "--start-frame", n + 5,
+              output=out, names=[video, "--start-frame"])
+    cli.fails("track", video, "--rig", rig_file, "-o", out, "--start-frame", 20,
+              "--end-frame", 10, output=out, names=[video, "--end-frame"])
+    cli.fails("track", video, "--rig", rig_file, "-o", out, "--exclude-frames", "3-x",
+              output=out, names=["--exclude-frames"])
+
+
+def test_calibrate_bad_inputs(cli, hdir, rig_file, good_clip):
+    video, truth, _ = good_clip
+    n = len(truth.data)
+    out = hdir / "calib.json"
+    cli.fails("calibrate", video, "--rig", rig_file, "-o", out, "--frame", n + 3, output=out,
+              names=[video, f"frame {n + 3}"])
+    import cv2
+
+    img = next(read_frames(video))
+    flat = hdir / "flat.png"
+    cv2.imwrite(str(flat), hide_grid(img))
+    cli.fails("calibrate", flat, "--rig", rig_file, "-o", out, output=out,
+              names=[flat, "frame 0", "grid"])
