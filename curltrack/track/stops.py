@@ -128,7 +128,6 @@ def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | N
     t = np.asarray(t, dtype=float)
     Q = np.asarray(q, dtype=float)
     Q = Q[:, None] if Q.ndim == 1 else Q
-    k = Q.shape[1]
     q = Q[:, 0]
     n = t.size
     if n < 8:
