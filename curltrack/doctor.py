@@ -4,7 +4,8 @@
 it) and runs the first steps of the pipeline on each: the container (codec, frame rate,
 frame count), the rig's markers, the thread grid (spacing, residual), the rock's size in
 the image and the camera height implied by the parallax between the marker plane and
-the ice.  The result is a checklist; a check is *fatal* when ``track`` cannot succeed
+the ice, and how fast the camera turns between consecutive frames.  The result is a
+checklist; a check is *fatal* when ``track`` cannot succeed
 (no frames, no markers, no grid anywhere), a *warning* when it will run but the result
 may suffer (markers missing in some frames, grid only partly visible, a tiny rock, an
 implausible camera height, a low frame rate).
@@ -37,6 +38,12 @@ MIN_ROCK_PX = 45.0
 MIN_SPACING_PX = 8.0
 #: Camera heights a rig of this kind is mounted at (m).
 HEIGHT_RANGE_M = (0.8, 8.0)
+#: Camera turn between consecutive frames (deg/frame): above the first, positions lose
+#: accuracy (measured: ~5 mm RMS at 3 deg/frame against ~1 mm still); above the second
+#: the grid's cell index is lost (measured: from ~10 deg/frame).
+TURN_WARN_DEG, TURN_FAIL_DEG = 1.0, 8.0
+#: Sampled frames that are also checked against their next frame (camera turn rate).
+N_PAIRS = 3
 
 
 @dataclass
@@ -46,7 +53,8 @@ class Check:
     Attributes
     ----------
     name : str
-        ``video``, ``fps``, ``markers``, ``grid``, ``rock_size``, ``camera_height``.
+        ``video``, ``fps``, ``length``, ``decode``, ``markers``, ``grid``, ``rock_size``,
+        ``camera_height``, ``camera_turn``.
     status : str
         ``"ok"``, ``"warn"`` or ``"fail"`` (fatal: ``track`` cannot succeed).
     detail : str
@@ -116,7 +124,7 @@ def _rock_mask(shape, xy_px, rig, px_per_m):
 
 
 def _sample(image, rig, det):
-    """Markers and grid on one frame -> dict of what was found."""
+    """Markers, grid and its angle on one frame -> dict of what was found."""
     from .calib import calibrate_frame
     from .track.parallax import similarity_fit
 
@@ -139,6 +147,9 @@ def _sample(image, rig, det):
     out["grid"] = True
     out["spacing_px"], out["residual_px"] = float(cal.spacing_px), float(cal.residual_px)
     out["n_threads"] = list(cal.n_threads)
+    c = np.array([[cal.width / 2, cal.height / 2], [cal.width / 2 + 20.0, cal.height / 2]])
+    e = np.diff(cal.image_to_ice(c), axis=0)[0]
+    out["yaw_deg"] = float(np.degrees(np.arctan2(e[1], e[0])))  # image +u in the lattice
     if mf.found.all():
         ice = cal.image_to_ice(mf.xy_px)
         if np.isfinite(ice).all():
@@ -178,6 +189,10 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
         "video", "ok", f"{info.codec or '?'} {info.width}x{info.height}, {info.n_frames} "
         f"frames, {info.duration_s:.2f} s", values=asdict(info)))
     fps_src = "rig [camera].fps" if rig.fps else "container"
+    if rig.fps:
+        cont = probe_video(video, check_end=False).fps
+        if abs(cont - rig.fps) > 0.01 * rig.fps:
+            fps_src += f", the container says {cont:.4g}: check which is right"
     if info.fps < MIN_FPS:
         rep.checks.append(Check("fps", "warn", f"{info.fps:.3g} frames/s ({fps_src})",
                                 f"below {MIN_FPS:g} fps stop times and lambda lose "
@@ -192,18 +207,50 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
                                 "whole shot until the rock rests"))
     idx = np.unique(np.linspace(0, info.n_frames - 1, max(1, min(n_samples, info.n_frames)))
                     .round().astype(int))
+    nxt = [int(i) + 1 for i in idx[:N_PAIRS] if i + 1 < info.n_frames]
     det = MarkerDetector(rig)
-    samples = []
+    found = {}
     try:
-        for fr in _frames_at(video, idx, rig.fps):
-            samples.append((fr.index, _sample(fr.image, rig, det)))
+        for fr in _frames_at(video, sorted(set(idx.tolist()) | set(nxt)), rig.fps):
+            found[fr.index] = (fr.t, _sample(fr.image, rig, det))
     except CurltrackError as exc:
         rep.checks.append(Check("decode", "fail", str(exc), "the file is damaged; re-export"))
         return rep
+    samples = [(int(i), found[int(i)][1]) for i in idx if int(i) in found]
     _marker_checks(rep, rig, samples)
     _grid_checks(rep, rig, samples)
     _geometry_checks(rep, rig, samples)
+    _turn_check(rep, [(found[i - 1][1], found[i][1], i - 1) for i in nxt
+                      if i - 1 in found and i in found], info.fps)
     return rep
+
+
+def _turn_check(rep, pairs, fps: float):
+    """Camera turn between consecutive frames, from the lattice's angle in each."""
+    rates = []
+    for a, b, frame in pairs:
+        if a.get("yaw_deg") is None or b.get("yaw_deg") is None:
+            continue
+        d = (b["yaw_deg"] - a["yaw_deg"] + 45.0) % 90.0 - 45.0  # lattice: modulo 90 deg
+        rates.append((abs(d), frame))
+    if not rates:
+        return
+    worst, frame = max(rates)
+    per_s = worst * fps
+    values = {"max_turn_deg_per_frame": worst, "max_turn_deg_per_s": per_s, "at_frame": frame,
+              "pairs": len(rates)}
+    detail = (f"up to {worst:.2f} deg/frame ({per_s:.0f} deg/s) over {len(rates)} "
+              f"frame pair(s)")
+    if worst > TURN_FAIL_DEG:
+        rep.checks.append(Check("camera_turn", "fail", detail + f" at frame {frame}",
+                                "the camera turns too fast to follow the grid: hold it "
+                                "steadier or mount it", values))
+    elif worst > TURN_WARN_DEG:
+        rep.checks.append(Check("camera_turn", "warn", detail + f" at frame {frame}",
+                                f"above {TURN_WARN_DEG:g} deg/frame positions lose accuracy "
+                                "(several mm): turn the camera more slowly", values))
+    else:
+        rep.checks.append(Check("camera_turn", "ok", detail, values=values))
 
 
 def _frames_text(frames) -> str:

@@ -28,6 +28,14 @@ def good_clip(hdir):
     return render_clip(hdir / "good.mp4", seed=11)
 
 
+@pytest.fixture(scope="session")
+def wide_clip(hdir):
+    """640x360 with the principal point at the centre and no tilt/distortion: turning its
+    frames about their centre is exactly a camera turning about its optical axis."""
+    return render_clip(hdir / "wide.mp4", size=(640, 360), view_m=1.6, seed=12, k1=0.0,
+                       tilt_deg=0.0, centred=True)
+
+
 class Cli:
     """Run the real typer app in-process; check the contract's failure shape."""
 

@@ -229,14 +229,6 @@ def test_wrong_marker_colours(cli, hdir, good_clip):
     assert "frame" in line
 
 
-@pytest.fixture(scope="session")
-def wide_clip(hdir):
-    # principal point at the centre, no tilt/distortion: turning the frames about their
-    # centre is then exactly a camera turning about its optical axis
-    return render_clip(hdir / "wide.mp4", size=(640, 360), view_m=1.6, seed=12, k1=0.0,
-                       tilt_deg=0.0, centred=True)
-
-
 @pytest.mark.parametrize("rate_deg_per_s", [12.0, -20.0])
 def test_slow_camera_turn_is_measured(cli, hdir, rig_file, wide_clip, rate_deg_per_s):
     video, truth, _ = wide_clip

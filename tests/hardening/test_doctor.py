@@ -89,3 +89,22 @@ def test_json_file_output(cli, hdir, rig_file, good_clip):
     data = json.loads(out.read_text())
     assert data["ok"] and np.isfinite(
         [c for c in data["checks"] if c["name"] == "grid"][0]["values"]["residual_px"])
+
+
+@pytest.mark.parametrize("band,status", [((0.1, 0.6), "ok"), ((2.0, 4.0), "warn"),
+                                         ((12.0, 20.0), "fail")])
+def test_camera_turn_rate(cli, hdir, rig_file, wide_clip, band, status):
+    """A camera turning steadily at a rate drawn from the band: measured and judged."""
+    from hardening.badinputs import read_frames, rotate_crop, write_frames
+
+    video, truth, _ = wide_clip
+    rate = float(np.random.default_rng(int(band[0] * 10)).uniform(*band))
+    v = write_frames(hdir / f"doctor_turn{band[0]:g}.mp4",
+                     (rotate_crop(img, rate * k, (400, 224))
+                      for k, img in enumerate(read_frames(video))), truth.meta["fps"])
+    res = cli("doctor", v, "--rig", rig_file, "--json")
+    data = json.loads(res.stdout)
+    turn = next(c for c in data["checks"] if c["name"] == "camera_turn")
+    assert turn["status"] == status, turn
+    assert turn["values"]["max_turn_deg_per_frame"] == pytest.approx(rate, abs=0.15)
+    assert res.exit_code == (1 if status == "fail" else 0)
