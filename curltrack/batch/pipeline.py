@@ -22,6 +22,12 @@ QUALITY_KEYS = ("n_frames", "n_measured", "frac_measured", "frames_lost",
                 "t_stop_rotation", "n_warnings", "warnings")
 
 
+def warm_up() -> None:
+    """Import the tracking and fitting stack (a few seconds, once per worker process)."""
+    import curltrack.fit  # noqa: F401
+    import curltrack.track.pipeline  # noqa: F401
+
+
 def track_and_fit(job: ShotJob, rig, shot_dir, options: BatchOptions) -> dict:
     """Track ``job.video``, fit it (and optionally discover), write the per-shot files.
 

@@ -186,6 +186,11 @@ def _run(client, jobs: list[ShotJob], rig: Rig, outdir: Path, options: BatchOpti
 
     rig_text = rig.to_toml()
     pending = {}
+    if pipeline is None:  # import the stack on every worker at once, not shot by shot
+        from .pipeline import warm_up
+
+        with contextlib.suppress(Exception):
+            client.run(warm_up)
 
     def submit_shot(job):
         fut = client.submit(process_shot, job, rig, rig_text, outdir, options, pipeline,

@@ -97,7 +97,7 @@ def process_shot(job: ShotJob, rig, rig_text: str, outdir, options: BatchOptions
         ``"done"``, ``"failed"`` or ``"skipped"`` (finished by an earlier run).
     """
     limit_threads()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     shot_dir = Path(outdir) / job.shot_id
     record = {"shot": job.to_dict(), "status": None, "error": None, "error_type": None}
     manifest = read_manifest(shot_dir)
@@ -130,6 +130,7 @@ def process_shot(job: ShotJob, rig, rig_text: str, outdir, options: BatchOptions
         _clear(shot_dir)
     record.update(version=_version(), input_sha256=digest.sha256,
                   elapsed_s=round(time.perf_counter() - t0, 3),
+                  cpu_s=round(time.process_time() - c0, 3),
                   worker=f"{socket.gethostname()}:{os.getpid()}")
     write_json(shot_dir / MANIFEST, {"key": key, "retry": retry, "input": digest.__dict__,
                                      "record": record, "traceback": trace})

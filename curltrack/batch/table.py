@@ -12,7 +12,8 @@ Columns, in order:
   :data:`curltrack.batch.pipeline.QUALITY_KEYS`); discovery, prefixed ``discover_``;
 - the columns of ``shots.csv`` (lower-cased, spaces -> ``_``), e.g. ``ice_surface``,
   ``date``, ``thrower``, ``notes``; a name already taken gets the prefix ``meta_``;
-- bookkeeping: ``version``, ``input_sha256``, ``elapsed_s``, ``worker``.
+- bookkeeping: ``version``, ``input_sha256``, ``elapsed_s`` (wall) and ``cpu_s`` (CPU
+  time of the worker process) of the shot's processing, ``worker`` (host:pid).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from ..errors import InputError
 METADATA_FILE = "shots.csv"
 SHOT_COLUMNS = ("shot_id", "file", "shot_index", "start_frame", "end_frame")
 STATUS_COLUMNS = ("status", "error", "error_type")
-BOOK_COLUMNS = ("version", "input_sha256", "elapsed_s", "worker")
+BOOK_COLUMNS = ("version", "input_sha256", "elapsed_s", "cpu_s", "worker")
 
 
 def read_shot_metadata(directory) -> pd.DataFrame | None:
