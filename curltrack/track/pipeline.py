@@ -236,8 +236,12 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     -------
     Series
         Contract columns ``frame, t, x, y, theta, ok`` + ``sigma_xy`` (m),
-        ``sigma_theta`` (rad), ``quality`` (0-1) and the sidecar (stops, camera height,
-        warnings...).
+        ``sigma_theta`` (rad) - 1 sigma from the marker centroids' pixel noise and the
+        homography's uncertainty - and ``quality`` (0-1: how well the frame's apparent
+        marker layout agrees with the whole video's, times the markers' colour contrast
+        relative to 40 Lab units).  Sidecar: the contract keys plus
+        ``camera_height_err_m``, ``parallax_factor(_err)``, ``t_stop_*_err``, the shot
+        frame in the lattice frame and the lens terms.
 
     Raises
     ------
