@@ -250,7 +250,7 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
     resp = thread_response(img, model, contrast)
     if mask is not None:
         resp = np.where(mask == 0, resp, 0).astype(np.float32)
-    xs, wt = candidate_pixels(resp, mask, max_n=60_000)
+    xs, wt = candidate_pixels(resp, mask, max_n=100_000)
     if len(xs) < 200:
         raise TrackingError("no grid found: almost no thread-like pixels in the frame")
     A = initial_lattice(resp, xs, wt, c, rig.spacing_x_m / rig.spacing_y_m)
@@ -307,6 +307,16 @@ def _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info) -> Calibrat
     lines = per_line_offsets(xs, wt, Hc, K, dist)
     pa, pb = periods_px(Hc, f)
     fam_a, fam_b, ia, ib = assign_families(ab[:, 0], ab[:, 1], pa, pb, 2.5, 3.5)
+    if model.directions is None:
+        # No rig colours: learn the threads' contrast against the ice from the fitted
+        # threads (a signed matched filter then, as with colours, for tracking)
+        on = fam_a | fam_b
+        xi = xs[on].astype(int)
+        v = (contrast[xi[:, 1], xi[:, 0]] * wt[on, None]).sum(axis=0)
+        if np.linalg.norm(v) > 0:
+            model = ColourModel(model.ice_bgr, (v / np.linalg.norm(v))[None, :])
+            notes.append("no thread colours in the rig: thread contrast learnt from the "
+                         "frame; cell index from the motion only")
     n = len(rig.grid_colors)
     resolved = False
     signs = (1, 1)

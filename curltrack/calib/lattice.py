@@ -18,6 +18,8 @@ import numpy as np
 
 from .lens import apply_h, undistort
 
+MIN_PERIOD_PX = 16.0  # shortest thread spacing looked for (px)
+
 
 def _spectrum_peak(mag, fx, fy, exclude_dir=None, min_angle_deg: float = 25.0):
     """Strongest spectral peak (fx, fy) in cycles/px, optionally away from a direction.
@@ -118,8 +120,9 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
     fy, fx = np.meshgrid(np.fft.fftshift(np.fft.fftfreq(h)), np.fft.fftshift(np.fft.fftfreq(wd)),
                          indexing="ij")
     fr = np.hypot(fx, fy)
-    # 10 px: below it threads are unresolvable, and JPEG blocking is periodic at 8 px
-    min_period, max_period = 10.0, min(h, wd) / 3.0
+    # 16 px: closer threads (1-3 px wide, blurred) are not worth measuring, and image
+    # artefacts are periodic at shorter scales (JPEG blocks at 8 px, tiled noise ~11 px)
+    min_period, max_period = MIN_PERIOD_PX, min(h, wd) / 3.0
     mag[(fr > 1 / min_period) | (fr < 1 / max_period) | (fy < 0) | ((fy == 0) & (fx < 0))] = 0
     if mag.max() <= 0:
         return None
@@ -145,7 +148,10 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
         if res is None:
             res = _fundamental_period(rel, w, normal, min_period, max_period)
         if res is not None:
-            found.append((normal, res[0], res[1]))
+            # Exactly along an image axis: most likely the image's own grid (codec blocks,
+            # resampling), which a real lattice matches only by chance: half weight.
+            axis = min(abs(normal[0]), abs(normal[1])) < 1e-3
+            found.append((normal, res[0], res[1] * (0.5 if axis else 1.0)))
     if not found:
         return None
     # The best pair: nearly perpendicular (a rectangular lattice seen from above) with the

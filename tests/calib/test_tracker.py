@@ -17,14 +17,14 @@ from calib.helpers import FrameMatch, align, short_shot, track_rendered
 
 SETUPS = {
     # fast takeout (3 m/s: ~0.1 m per frame, more than half a 0.15 m cell), handheld
-    "handheld_fast": dict(rig=Rig(), v0=3.0, seed=11,
+    "handheld_fast": dict(rig=Rig(), v0=3.0, seed=11, tol_m=0.7e-3,
                           camera=CameraConfig(motion="handheld", height_m=1.6, k1=-0.1)),
     # three thread colours, unequal 0.1 x 0.2 m cells, higher ladder, tilt 3 deg
     "ladder_3colour": dict(
         rig=Rig(spacing_x_m=0.1, spacing_y_m=0.2, grid_colors=("#d02020", "#2040d0", "#20a040"),
                 markers=(Marker("#ffd000", 0.08, 0.0), Marker("#00c0ff", -0.08, 0.0))),
-        v0=2.0, seed=12, camera=CameraConfig(motion="ladder", height_m=2.6, tilt_deg=3.0,
-                                             k1=-0.05)),
+        v0=2.0, seed=12, tol_m=0.4e-3,
+        camera=CameraConfig(motion="ladder", height_m=2.6, tilt_deg=3.0, k1=-0.05)),
 }
 
 
@@ -35,24 +35,26 @@ def rendered(request, tmp_path_factory):
     video = out / "v.mp4"
     truth = render_video(short_shot(v0=s["v0"], seconds=1.1), s["rig"], video,
                          config=RenderConfig(camera=s["camera"]), seed=s["seed"])
-    return request.param, video, truth.data, s["rig"]
+    return request.param, video, truth.data, s["rig"], s["tol_m"]
 
 
 def test_rendered_video_homography_accuracy(rendered):
-    name, video, truth, rig = rendered
+    name, video, truth, rig, tol = rendered
     est, ok, poses = track_rendered(video, truth, rig)
     assert ok.all(), [p.message for p in poses if not p.ok]
     # the lattice frame equals the truth frame up to quarter turns and an offset
     rms, err, _ = align(est, truth[["x", "y"]].to_numpy(), rig.spacing_x_m, rig.spacing_y_m,
                         free_offset=True)
-    assert rms < 0.5e-3, name  # ice position of the rock centre, whole clip
+    # ice position of the rock centre, whole clip (the budget of the grid in the ~1 mm
+    # of the rock's position; heavy motion blur across one family costs a little)
+    assert rms < tol, name
     assert np.abs(err).max() < 1.5e-3, name  # never a jump by a cell (0.1-0.2 m)
     assert all(np.isfinite(p.sigma_px) for p in poses)
 
 
 def test_rendered_video_lens_recovered(rendered):
     """k1 and the distortion centre of the renderer's camera, from the first frame."""
-    name, video, truth, rig = rendered
+    name, video, truth, rig, _ = rendered
     from curltrack.video import read_frame
 
     cal = calibrate_frame(read_frame(video, 0), rig)
