@@ -52,8 +52,12 @@ def make_videos(directory: Path, n: int, seed: int = 0) -> Path:
     return rig_path
 
 
+def _stderr(*args):
+    print(*args, file=sys.stderr)
+
+
 def throughput(n_videos: int = 8, workers=(1, 2), repeats: int = 2, video_dir=None,
-               log=print) -> dict:
+               log=_stderr) -> dict:
     """Time a batch of ``n_videos`` with each worker count, interleaved ``repeats`` times.
 
     Returns
@@ -116,8 +120,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path, help="write the result here")
     args = ap.parse_args(argv)
     os.environ.setdefault("MPLBACKEND", "Agg")
-    res = throughput(args.videos, repeats=args.repeats, video_dir=args.dir,
-                     log=lambda *a: print(*a, file=sys.stderr))
+    res = throughput(args.videos, repeats=args.repeats, video_dir=args.dir)
     text = json.dumps(res, indent=2)
     print(text)
     if args.json:

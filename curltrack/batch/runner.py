@@ -208,7 +208,7 @@ def _run(client, jobs: list[ShotJob], rig: Rig, outdir: Path, options: BatchOpti
 
     first = [(submit_split if options.split else submit_shot)(j) for j in jobs]
     records: list[dict] = []
-    bar = _Progress(len(jobs), enabled=progress, unit="video" if options.split else "shot")
+    bar = _Progress(len(jobs), enabled=progress)  # with split: grows as videos are split
     queue = as_completed(first)
     try:
         with bar:
@@ -220,10 +220,10 @@ def _run(client, jobs: list[ShotJob], rig: Rig, outdir: Path, options: BatchOpti
                     result = _crash_record(job, exc)
                 if kind == "split" and isinstance(result, list):
                     shots = split_jobs(job, result)
-                    bar.add(len(shots) - 1)
                     if not shots:
                         records.append(_crash_record(job, None, "no shot found in the video"))
                         bar.advance(records[-1])
+                    bar.add(max(0, len(shots) - 1))
                     for sj in shots:
                         queue.add(submit_shot(sj))
                     continue
@@ -248,7 +248,7 @@ def _crash_record(job: ShotJob, exc, message: str | None = None) -> dict:
 class _Progress:
     """A rich progress bar on stderr counting done / skipped / failed (no-op if disabled)."""
 
-    def __init__(self, total: int, enabled: bool, unit: str):
+    def __init__(self, total: int, enabled: bool):
         self.enabled, self.counts = enabled, {"done": 0, "skipped": 0, "failed": 0}
         if enabled:
             from rich.console import Console
@@ -259,7 +259,6 @@ class _Progress:
                                 TextColumn("{task.description}"), TimeElapsedColumn(),
                                 TimeRemainingColumn(), console=Console(stderr=True))
             self.task = self.bar.add_task(self._text(), total=total)
-        self.unit = unit
 
     def _text(self) -> str:
         c = self.counts
