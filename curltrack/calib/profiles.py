@@ -169,10 +169,16 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         return np.add.reduceat(a[order], starts, axis=0)
 
     sig = group(sig) / counts[:, None]
-    mid = order[starts + counts // 2]  # a profile on the (curved) thread, mid-segment
-    centre, dirv = centre[mid], dirv[mid]
     member_group = np.empty(len(key), np.int64)
     member_group[order] = np.repeat(np.arange(len(starts)), counts)
+    # The averaged profile measures the thread's mean offset from the prediction, i.e.
+    # the offset at the members' mean position along it: represent the group by the
+    # member profile nearest that position (on the predicted, possibly curved, thread).
+    mean_along = group(along) / counts
+    gap_along = np.abs(along - mean_along[member_group])
+    rep = np.lexsort((gap_along, member_group))
+    rep = rep[np.r_[0, np.cumsum(counts)[:-1]]]
+    centre, dirv = centre[rep], dirv[rep]
     fam, idx, t = fam[first], idx[first], t[first]
     # Find the thread on a copy smoothed by the blur length (merges the ghosts of a
     # smeared thread), take the centroid of the unsmoothed signal over the run found.

@@ -234,7 +234,7 @@ class GridTracker:
                         sigma_px=info["sigma_px"], jump_cells=(float(jump[0]), float(jump[1])))
         if ambiguous:
             pose.ok = False
-            pose.message = "cell index ambiguous: " + note
+            pose.message = "cell index uncertain: " + note
             return pose
         unchecked = np.abs(jump) * ~np.array(confirmed)
         if np.max(unchecked) > AMBIGUOUS_CELLS:
@@ -271,6 +271,12 @@ class GridTracker:
                 continue
             confirmed[j] = True
             if p == 0:
+                continue
+            if abs(jump[j]) < 0.25:
+                # the threads are where the motion put them: a slip is not plausible, the
+                # colours are more likely misread -- say so rather than move by a cell
+                ambiguous = True
+                notes.append(f"{'xy'[j]} thread colours disagree with the tracked cell index")
                 continue
             cands = np.array([-p + m * n for m in (-1, 0, 1, 2)])
             cost = np.abs(jump[j] + cands)

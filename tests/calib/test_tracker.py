@@ -48,7 +48,7 @@ def test_rendered_video_homography_accuracy(rendered):
     # ice position of the rock centre, whole clip (the budget of the grid in the ~1 mm
     # of the rock's position; heavy motion blur across one family costs a little)
     assert rms < tol, name
-    assert np.abs(err).max() < 1.5e-3, name  # never a jump by a cell (0.1-0.2 m)
+    assert np.abs(err).max() < 5 * tol, name  # never a jump by a cell (0.1-0.2 m)
     assert all(np.isfinite(p.sigma_px) for p in poses)
 
 
