@@ -66,7 +66,7 @@ def _env():
 
 
 def test_interrupted_batch_resumes_and_matches_track_fit(folder, tmp_path):
-    from curltrack.batch import run_batch
+    from curltrack.batch import open_client
 
     out = tmp_path / "out"
     videos, rig = folder / "videos", folder / "rig.toml"
@@ -87,7 +87,14 @@ def test_interrupted_batch_resumes_and_matches_track_fit(folder, tmp_path):
     assert not (out / "campaign.parquet").exists() or len(before) == N_GOOD + 1
 
     # 2. Resumed: finished shots are skipped (manifests untouched), the rest are done.
-    s = run_batch(videos, rig, out, workers=2)
+    with open_client(workers=2) as client:
+        _resume_and_compare(client, videos, rig, out, before, tmp_path)
+
+
+def _resume_and_compare(client, videos, rig, out, before, tmp_path):
+    from curltrack.batch import run_batch
+
+    s = run_batch(videos, rig, out, client=client)
     outcomes = {r["shot"]["shot_id"]: r["outcome"] for r in s.records}
     assert {k for k, v in outcomes.items() if v == "skipped"} == set(before)
     assert all(_manifests(out)[k] == before[k] for k in before)
@@ -125,7 +132,7 @@ def test_interrupted_batch_resumes_and_matches_track_fit(folder, tmp_path):
         assert table.loc[f"shot{i}", "track_frac_measured"] > 0.9
 
     # 4. Run again: nothing left to do; the table is rebuilt identically.
-    s2 = run_batch(videos, rig, out, workers=1)
+    s2 = run_batch(videos, rig, out, client=client)
     assert (s2.done, s2.skipped, s2.failed) == (0, N_GOOD + 1, 0)
     pd.testing.assert_frame_equal(pd.read_parquet(out / "campaign.parquet").set_index(
         "shot_id"), table)
