@@ -125,7 +125,16 @@ class Calibration(PlaneMap):
             "colors_resolved": self.colors_resolved, "n_colors": self.n_colors,
             "color_signs": list(self.color_signs),
             "camera_height_m": self.camera_height_m, "notes": list(self.notes),
+            "lattice_y_axis_deg": self.y_axis_deg(),
         }
+
+    def y_axis_deg(self) -> float:
+        """Direction of the lattice's +y axis in the image at the principal point (deg,
+        counter-clockwise from the image's up direction)."""
+        c = self.K[:2, 2]
+        o, e = self.ice_to_image(self.image_to_ice(c[None]) + [[0.0, 0.0], [0.0, 0.05]])
+        d = e - o
+        return float(np.degrees(np.arctan2(-d[0], -d[1])))
 
     @classmethod
     def from_dict(cls, d) -> "Calibration":
