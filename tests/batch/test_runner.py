@@ -162,3 +162,19 @@ def test_cli_all_failed_exits_1_with_one_line(tmp_path):
     assert r.output.strip().splitlines()[-1].startswith("curltrack: error: all 1 shot(s) failed")
     assert "Traceback" not in r.output
     assert pd.read_csv(tmp_path / "out" / "campaign.csv")["status"].tolist() == ["failed"]
+
+
+def test_metadata_rows_per_split_shot(tmp_path):
+    from curltrack.batch.table import build_table, read_shot_metadata
+
+    (tmp_path / "shots.csv").write_text("file,shot,thrower\nsess.mp4,,Anna\n"
+                                        "sess.mp4,2,Ben\nsub/other.mp4,,Cy\n")
+    meta = read_shot_metadata(tmp_path)
+    recs = [{"shot": {"shot_id": f"sess__shot0{i}", "file": "sess.mp4", "shot_index": i},
+             "status": "done", "fit": {"v0": 0.1 * i}} for i in (1, 2, 3)]
+    recs.append({"shot": {"shot_id": "sub__other", "file": "sub/other.mp4"},
+                 "status": "failed", "error": "x"})
+    t = build_table(recs, meta).set_index("shot_id")
+    assert t["thrower"].to_dict() == {"sess__shot01": "Anna", "sess__shot02": "Ben",
+                                      "sess__shot03": "Anna", "sub__other": "Cy"}
+    assert t.loc["sess__shot02", "v0"] == pytest.approx(0.2)
