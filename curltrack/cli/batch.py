@@ -25,8 +25,8 @@ def batch(
                                   "workers must see the same paths."),
     split: bool = typer.Option(False, "--split", help="Find the shots in each video "
                                "(rest -> release -> stop) and process each on its own."),
-    report: bool = typer.Option(False, "--report", help="Also write the campaign plots "
-                                "(PNG) and report.html."),
+    report: bool = typer.Option(True, "--report/--no-report", help="Write the campaign "
+                                "plots (report/*.png) and report.html (default on)."),
     discover: bool = typer.Option(False, "--discover", help="Also run discover on each shot "
                                   "(REPORT.json)."),
     plots: bool = typer.Option(False, "--plots", help="Write FIT.png for each shot."),

@@ -162,6 +162,7 @@ def test_cli_all_failed_exits_1_with_one_line(tmp_path):
     assert r.output.strip().splitlines()[-1].startswith("curltrack: error: all 1 shot(s) failed")
     assert "Traceback" not in r.output
     assert pd.read_csv(tmp_path / "out" / "campaign.csv")["status"].tolist() == ["failed"]
+    assert (tmp_path / "out" / "report.html").exists()  # campaign plots by default
 
 
 def test_metadata_rows_per_split_shot(tmp_path):
