@@ -24,8 +24,10 @@ QUALITY_KEYS = ("n_frames", "n_measured", "frac_measured", "frames_lost",
 
 def warm_up() -> None:
     """Import the tracking and fitting stack (a few seconds, once per worker process)."""
-    import curltrack.fit  # noqa: F401
-    import curltrack.track.pipeline  # noqa: F401
+    import importlib
+
+    for name in ("curltrack.fit", "curltrack.track.pipeline"):
+        importlib.import_module(name)
 
 
 def track_and_fit(job: ShotJob, rig, shot_dir, options: BatchOptions) -> dict:

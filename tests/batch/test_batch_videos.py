@@ -110,7 +110,7 @@ def _resume_and_compare(client, videos, rig, out, before, tmp_path):
     # 3. The same per-shot results as `curltrack track` + `curltrack fit` one by one.
     cli = CliRunner()
     for i in range(N_GOOD):
-        shot_csv, fit_json = tmp_path / f"s{i}.csv", tmp_path / f"s{i}.json.fit"
+        shot_csv = tmp_path / f"s{i}.csv"
         r = cli.invoke(app, ["track", str(videos / f"shot{i}.mp4"), "--rig", str(rig), "-o",
                              str(shot_csv), "--quiet", "--no-progress"])
         assert r.exit_code == 0, r.output

@@ -17,7 +17,7 @@ import pytest
 
 from curltrack.batch import BatchOptions, run_batch
 from curltrack.batch.shot import MANIFEST
-from curltrack.errors import InputError, TrackingError
+from curltrack.errors import InputError
 from curltrack.rig import default_rig
 
 HERE = Path(__file__).parent
