@@ -139,8 +139,11 @@ def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | N
     if span < MIN_MOTION_SIGMA * sigma:
         return None, None, "no motion above the noise"
     q_rest = float(np.median(q[-5:]))
-    # Coarse stop: the last frame clearly below the rest level (fires early in noise).
-    below = np.flatnonzero(q < q_rest - 3.0 * sigma)
+    # Coarse stop: the last frame clearly below the rest level (fires early in noise);
+    # on a running median, so that one outlying frame at rest is not taken for motion.
+    from scipy.ndimage import median_filter
+
+    below = np.flatnonzero(median_filter(q, size=5, mode="nearest") < q_rest - 3.0 * sigma)
     i_c = int(below[-1]) if below.size else 0
     if i_c >= n - MIN_REST_FRAMES:
         return None, None, "still moving at the end of the series"

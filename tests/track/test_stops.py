@@ -98,3 +98,13 @@ def test_noise_sigma_recovers_white_noise():
     t = np.linspace(0, 10, 600)
     q = cf.decel_position(t, 20.0, 1.8, 12.0) + rng.normal(0, 0.003, t.size)
     assert noise_sigma(q) == pytest.approx(0.003, rel=0.15)
+
+
+def test_one_outlying_frame_at_rest_is_not_motion():
+    rng = np.random.default_rng(11)
+    data, t_FS, t_Ft = _draw_series(rng)
+    for col, noise in (("y", NOISE_M), ("theta", NOISE_RAD)):
+        data.loc[len(data) - 2, col] -= 5 * noise * np.sign(data[col].iloc[-1] or 1.0)
+    s = detect_stops(data, FPS)
+    assert abs(s.t_stop_translation - t_FS) * FPS < 1.5
+    assert abs(s.t_stop_rotation - t_Ft) * FPS < 1.5
