@@ -191,6 +191,30 @@ def test_grid_hidden_for_a_stretch(cli, hdir, rig_file, good_clip):
     assert np.sqrt(np.mean(np.hypot(m.x - m.x_t, m.y - m.y_t)[ok] ** 2)) < 0.004
 
 
+def test_grid_hidden_in_part_of_the_image(cli, hdir, rig_file, good_clip):
+    """The top 25-50 % of every frame without threads (a shadow, a board): measured."""
+    from hardening.badinputs import flat_fill
+
+    video, truth, _ = good_clip
+    tr = truth.data
+    frac = float(np.random.default_rng(6).uniform(0.25, 0.5))
+
+    def edit(k, img):
+        h, w = img.shape[:2]
+        vv, uu = np.mgrid[0:h, 0:w]
+        far = np.hypot(uu - tr.u_top_px[k], vv - tr.v_top_px[k]) > 42
+        return flat_fill(img, (vv < frac * h) & far)
+
+    v = edit_video(video, hdir / "gridhalf.mp4", edit)
+    out = hdir / "gridhalf.csv"
+    cli.succeeds("track", v, "--rig", rig_file, "-o", out)
+    s = pd.read_csv(out)
+    m = s.merge(tr[["frame", "x", "y"]], on="frame", suffixes=("", "_t"))
+    ok = m["ok"] == 1
+    assert ok.mean() > 0.95
+    assert np.sqrt(np.mean(np.hypot(m.x - m.x_t, m.y - m.y_t)[ok] ** 2)) < 0.003
+
+
 def test_grid_hidden_everywhere(cli, hdir, rig_file, good_clip):
     video, truth, _ = good_clip
     tr = truth.data
