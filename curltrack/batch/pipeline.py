@@ -69,10 +69,11 @@ def track_and_fit(job: ShotJob, rig, shot_dir, options: BatchOptions) -> dict:
 
 def _discover(series: Series, rig, path: Path) -> dict:
     from ..discover import discover
+    from ..discover.report import public, write_json_report
 
-    report = discover([series], rig=rig)
-    data = report.to_dict() if hasattr(report, "to_dict") else dict(report)
-    write_json(path, data)
+    report = discover(series, rig=rig)
+    write_json_report(report, path)
+    data = public(report)
     best = (data.get("findings") or [{}])[0]
     return {"verdict": data.get("verdict"), "best_effect": best.get("effect"),
             "best_delta_bic": best.get("delta_bic")}

@@ -194,3 +194,20 @@ def test_batch_on_a_separately_started_scheduler(folder, tmp_path, scheduler_add
     np.testing.assert_allclose(got[["x", "y", "theta"]].to_numpy(),
                                ref.data[["x", "y", "theta"]].to_numpy(), rtol=1e-7,
                                atol=1e-9, equal_nan=True)
+
+
+@pytest.mark.slow
+def test_batch_discover_writes_reports(folder, tmp_path):
+    """--discover: REPORT.json per shot; a clean simulated shot has nothing to find."""
+    from curltrack.batch import BatchOptions, run_batch
+
+    videos = tmp_path / "videos"
+    videos.mkdir()
+    shutil.copy(folder / "videos" / "shot0.mp4", videos / "clean.mp4")
+    out = tmp_path / "out"
+    run_batch(videos, folder / "rig.toml", out, workers=1,
+              options=BatchOptions(discover=True))
+    report = json.loads((out / "clean" / "REPORT.json").read_text())
+    assert report["verdict"] == "none"
+    table = pd.read_parquet(out / "campaign.parquet")
+    assert table["discover_verdict"].tolist() == ["none"]
