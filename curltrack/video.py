@@ -17,12 +17,17 @@ Frames are decoded one at a time; no function here holds more than one frame.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .errors import VideoError
+
+# FFmpeg's own log lines (e.g. "moov atom not found") must not reach the user's terminal:
+# errors are reported once, as a VideoError.  Read when OpenCV first opens a video.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 
@@ -132,6 +137,11 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
             cap.set(cv2.CAP_PROP_POS_FRAMES, n - 1)
             ok, img = cap.read()
             if not ok or img is None:
+                # A variable frame rate makes the frame -> time conversion of the seek
+                # (and the announced count) approximate: seek by time near the end.
+                cap.set(cv2.CAP_PROP_POS_MSEC, max(0.0, (n - 3) * 1000.0 / fps))
+                ok, img = cap.read()
+            if not ok or img is None:
                 raise VideoError(f"video is truncated: the container announces {n} frames "
                                  "but the last one cannot be decoded", path=path,
                                  where=f"frame {n - 1}")
@@ -192,7 +202,10 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
                 ok, img = cap.read()
                 ms = cap.get(cv2.CAP_PROP_POS_MSEC)
             if not ok:
-                if stop > 0 and index < stop:
+                # (with a variable frame rate the announced count is duration x mean rate:
+                # ending within ~2 frames of the container's duration is the real end)
+                at_end = np.isfinite(prev_ms) and prev_ms >= (n - 3.5) * 1000.0 / fps
+                if stop > 0 and index < stop and not (end is None and at_end):
                     raise VideoError(f"video is truncated or corrupt: decoding stopped at "
                                      f"frame {index} of {n}", path=path, where=f"frame {index}")
                 break

@@ -85,7 +85,11 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     from .lens import undistort
 
     ab_edge = apply_h(Hc, (undistort(edge, K, dist) - K[:2, 2]) / f)
+    if not np.all(np.isfinite(ab_edge)):
+        return None  # a degenerate prediction (the view folds over): nothing to sample
     lo, hi = ab_edge.min(axis=0), ab_edge.max(axis=0)
+    if np.any(hi - lo > 1000):
+        return None
     J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])
     p_cell = f / np.linalg.norm(J, axis=1)  # px per cell, families A, B
     pts, fams, idxs = [], [], []
@@ -115,9 +119,12 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     eps[fam == 0, 0] = 0.02
     eps[fam == 1, 1] = 0.02
     dirv = _lattice_to_px(Hc_inv, K, dist, ab + eps) - centre
-    dirv /= np.linalg.norm(dirv, axis=1, keepdims=True)
+    norm = np.linalg.norm(dirv, axis=1, keepdims=True)
+    finite = np.isfinite(centre).all(axis=1) & np.isfinite(norm[:, 0]) & (norm[:, 0] > 0)
+    centre = np.where(finite[:, None], centre, -1e6)  # (outside the image below)
+    dirv = np.where(finite[:, None], dirv / np.where(norm > 0, norm, 1.0), 0.0)
     half = np.where(fam == 0, half_px[0], half_px[1])
-    inside = ((centre[:, 0] > half + margin_px) & (centre[:, 0] < w - 1 - half - margin_px)
+    inside = finite & ((centre[:, 0] > half + margin_px) & (centre[:, 0] < w - 1 - half - margin_px)
               & (centre[:, 1] > half + margin_px) & (centre[:, 1] < h - 1 - half - margin_px))
     if mask is not None:
         ci = np.round(centre).astype(int)
