@@ -97,6 +97,15 @@ def _reduced_residual(t_F, lam, tw, Qw, quad, sigma):
     return np.concatenate(out) / sigma
 
 
+def _tail_scatter(t: np.ndarray, q: np.ndarray, n: int = 12) -> float:
+    """Robust sigma of the last ``n`` points about a straight line (0 if too few)."""
+    if q.size < n:
+        return 0.0
+    tt, qq = t[-n:], q[-n:]
+    resid = qq - np.polyval(np.polyfit(tt - tt[0], qq, 1), tt - tt[0])
+    return float(1.4826 * np.median(np.abs(resid - np.median(resid))))
+
+
 def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | None = None,
                        quad: bool = False):
     """Fit Eq. (1) to coordinates that move toward a rest level and stay there.
@@ -134,6 +143,9 @@ def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | N
         return None, None, "too few measured frames"
     if sigma is None:
         sigma = noise_sigma(q)
+    # Tracking errors are partly correlated from frame to frame, so second differences
+    # can underestimate the scatter at rest; the detrended tail measures it directly.
+    sigma = max(sigma, _tail_scatter(t, q))
     span = float(np.median(q[-5:]) - np.median(q[:3]))
     sigma = max(sigma, 1e-9 * max(1.0, abs(span)))
     if span < MIN_MOTION_SIGMA * sigma:
