@@ -8,7 +8,12 @@ warmed up beforehand (start-up and imports, a few s, are reported but not counte
 are paid once per batch, not per shot).  Each run also reports the CPU its shots got.  Target: the
 2-worker throughput >= 1.7x the 1-worker one on a 2-core machine (>= 8 videos).
 
-The machine's load average is recorded: other processes on the cores lower the ratio.
+The machine's load average is recorded.  On a shared machine the ratio says little:
+with Linux's session autogroups (``/proc/sys/kernel/sched_autogroup_enabled`` = 1) the
+kernel shares the cores between sessions, so a busy machine gives this benchmark's
+session the same share (see ``cores_obtained``) whatever the number of workers.  Run it
+on an otherwise idle machine; ``cpu_s`` equal for 1 and 2 workers shows that the
+parallel run does no extra work.
 
 Usage::
 
@@ -50,6 +55,13 @@ def make_videos(directory: Path, n: int, seed: int = 0) -> Path:
             sim = simulate_series(model, fps=30.0, tail_s=0.3)
             render_video(sim, rig, path, config=cfg, seed=seed * 1000 + i)
     return rig_path
+
+
+def _autogroup() -> bool | None:
+    try:
+        return Path("/proc/sys/kernel/sched_autogroup_enabled").read_text().strip() == "1"
+    except OSError:
+        return None
 
 
 def _stderr(*args):
@@ -105,6 +117,7 @@ def throughput(n_videos: int = 8, workers=(1, 2), repeats: int = 2, video_dir=No
     out = {"n_videos": n_videos, "cpus": os.cpu_count(), "runs": runs,
            "median_shots_per_min": med, "speedup": round(speedup, 3), "target": 1.7,
            "meets_target": speedup >= 1.7,
+           "autogroup": _autogroup(),
            "load_avg_before": [round(x, 2) for x in load_before],
            "load_avg_after": [round(x, 2) for x in os.getloadavg()]}
     log(f"bench_batch: speed-up {hi} vs {lo} worker(s) = {speedup:.2f}x (target >= 1.7x); "
