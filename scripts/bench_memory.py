@@ -14,9 +14,9 @@ Usage::
     scripts/bench_memory.py --minutes 1 10        # the 10-minute case (slow: ~real time)
     scripts/bench_memory.py --size 960x540 --minutes 0.25 1 --json bench_memory.json
 
-Prints one line per length (frames, wall s, tracked fps, peak RSS MB) and the growth of
-the peak RSS per extra minute of video; exit status 1 when it grows by more than
-``--max-growth-mb-per-min`` (default 8 MB/min).
+Prints one line per length (frames, wall s, tracked fps, peak RSS MB, and the RSS at 30 %
+and 90 % of the run) and the growth of the peak RSS per extra minute of video; exit
+status 1 when it grows by more than ``--max-growth-mb-per-min`` (default 8 MB/min).
 """
 
 from __future__ import annotations
@@ -72,21 +72,55 @@ def make_long(base: Path, out: Path, n_frames: int, fps: float) -> Path:
     return out
 
 
-def track_peak_rss(video: Path, rig: Path, out_csv: Path) -> dict:
-    """Run `curltrack track` in a child; its wall time and peak RSS (MB)."""
+def track_peak_rss(video: Path, rig: Path, out_csv: Path, every_s: float = 0.5) -> dict:
+    """Run `curltrack track` in a child; its wall time, peak RSS and RSS over the run (MB).
+
+    Besides the kernel's peak (which may be set by a start-up transient), the child's
+    RSS is sampled every ``every_s``; ``rss_early_mb`` / ``rss_late_mb`` are its medians
+    over 25-35 % and 85-95 % of the run, so growth during the run is seen even when it
+    stays under the peak.
+    """
+    import threading
+
+    import numpy as np
+    import psutil
+
     cmd = [sys.executable, "-m", "curltrack", "track", str(video), "--rig", str(rig),
            "-o", str(out_csv), "--no-progress", "-q"]
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    samples = []
+    done = threading.Event()
+
+    def sample():
+        p = psutil.Process(proc.pid)
+        while not done.wait(every_s):
+            try:
+                samples.append((time.perf_counter() - t0, p.memory_info().rss / 2**20))
+            except psutil.Error:
+                return
+
+    th = threading.Thread(target=sample, daemon=True)
+    th.start()
     _, status, usage = os.wait4(proc.pid, 0)
+    done.set()
+    th.join()
     wall = time.perf_counter() - t0
     err = proc.stderr.read().decode(errors="replace").strip()
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode != 0:
         raise SystemExit(f"track failed on {video}: {err}")
     scale = 1024.0 if sys.platform != "darwin" else 1024.0 ** 2  # ru_maxrss: KB (Linux)
+    ts = np.array([t for t, _ in samples])
+    rss = np.array([r for _, r in samples])
+
+    def median_in(a, b):
+        sel = (ts >= a * wall) & (ts <= b * wall)
+        return float(np.median(rss[sel])) if sel.any() else None
+
     return {"wall_s": wall, "peak_rss_mb": usage.ru_maxrss / scale,
-            "cpu_s": usage.ru_utime + usage.ru_stime}
+            "cpu_s": usage.ru_utime + usage.ru_stime,
+            "rss_early_mb": median_in(0.25, 0.35), "rss_late_mb": median_in(0.85, 0.95)}
 
 
 def main(argv=None) -> int:
@@ -120,9 +154,12 @@ def main(argv=None) -> int:
             n_rows = len(pd.read_csv(work / f"long_{n}.csv"))
             r.update(minutes=minutes, frames=n, rows=n_rows, fps_tracked=n / r["wall_s"])
             rows.append(r)
+            early, late = r["rss_early_mb"], r["rss_late_mb"]
+            drift = (f"  RSS {early:.0f} MB at 30 % -> {late:.0f} MB at 90 % of the run"
+                     if early is not None and late is not None else "")
             print(f"{minutes:6.2f} min  {n:6d} frames  {r['wall_s']:7.1f} s wall  "
-                  f"{r['fps_tracked']:6.1f} frames/s  peak RSS {r['peak_rss_mb']:7.1f} MB",
-                  flush=True)
+                  f"{r['fps_tracked']:6.1f} frames/s  peak RSS {r['peak_rss_mb']:7.1f} MB"
+                  + drift, flush=True)
             video.unlink()
     a, b = rows[0], rows[-1]
     growth = (b["peak_rss_mb"] - a["peak_rss_mb"]) / max(b["minutes"] - a["minutes"], 1e-9)
