@@ -1,10 +1,11 @@
-# Sourced by test.sh / demo.sh / bench: create or refresh .venv and install curltrack.
+# Sourced by test.sh / demo.sh: create or refresh .venv and install curltrack
+# (with the extras named in CURLTRACK_EXTRAS, e.g. "test").
 # Works on a fresh machine (only python3 >= 3.11 needed; packages from the registry).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 PY="${PYTHON:-python3}"
 VENV="$ROOT/.venv"
-EXTRAS="${1:-}"
+EXTRAS="${CURLTRACK_EXTRAS:-}"
 if [ ! -x "$VENV/bin/python" ]; then
   echo "[curltrack] creating virtual environment in $VENV" >&2
   "$PY" -m venv "$VENV"
