@@ -69,6 +69,20 @@ class Frame:
     image: np.ndarray
 
 
+def decoder_threads() -> int:
+    """Threads of the video decoder (and of OpenCV in tracking): ``CURLTRACK_THREADS``.
+
+    Default 1 per process, so that batch workers (one process per video) do not fight
+    over the cores; set ``CURLTRACK_THREADS=0`` to let OpenCV/FFmpeg choose.
+    """
+    raw = os.environ.get("CURLTRACK_THREADS", "1").strip() or "1"
+    try:
+        return max(0, int(raw))
+    except ValueError:
+        raise VideoError(f"CURLTRACK_THREADS must be a whole number, got {raw!r}",
+                         where="environment") from None
+
+
 def _open(path):
     import cv2
 
@@ -79,7 +93,7 @@ def _open(path):
         raise VideoError("is a directory, expected a video file", path=p)
     if p.stat().st_size == 0:
         raise VideoError("file is empty", path=p)
-    cap = cv2.VideoCapture(str(p))
+    cap = cv2.VideoCapture(str(p), cv2.CAP_ANY, [cv2.CAP_PROP_N_THREADS, decoder_threads()])
     if not cap.isOpened():
         cap.release()
         raise VideoError("cannot open as a video (unknown format or corrupt container)", path=p)

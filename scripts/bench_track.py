@@ -25,6 +25,166 @@ def decode_fps(video) -> float:
     return n / (time.perf_counter() - t0)
 
 
+#: Clock of the speed benchmark: CPU time of this process.  The machines these run on
+#: are shared (load averages of several per core): wall time then measures the
+#: neighbours; with one thread per process (decoder and OpenCV), CPU time is the work.
+_now = time.process_time
+
+
+class _StageClock:
+    """Accumulate wall time spent in a few named callables, in one tracking run.
+
+    The stages are wrapped (not copied): the grid (``GridTracker.update`` plus the
+    one-off ``calibrate_frame``), the markers (the follower's ``detect``) and the
+    decoder (the frame iterator's ``next``); everything else is "other".
+    """
+
+    def __init__(self):
+        self.s = {"decode": 0.0, "grid": 0.0, "calibrate": 0.0, "markers": 0.0}
+        self._undo = []
+
+    def wrap(self, owner, name, stage):
+        orig = getattr(owner, name)
+        clock = self.s
+
+        def timed(*a, **k):
+            t0 = _now()
+            try:
+                return orig(*a, **k)
+            finally:
+                clock[stage] += _now() - t0
+
+        setattr(owner, name, timed)
+        self._undo.append((owner, name, orig))
+
+    def wrap_iter(self, owner, name):
+        orig = getattr(owner, name)
+        clock = self.s
+
+        def timed_iter(*a, **k):
+            it = orig(*a, **k)
+            while True:
+                t0 = _now()
+                try:
+                    fr = next(it)
+                except StopIteration:
+                    return
+                finally:
+                    clock["decode"] += _now() - t0
+                yield fr
+
+        setattr(owner, name, timed_iter)
+        self._undo.append((owner, name, orig))
+
+    def __enter__(self):
+        import curltrack.calib.tracker as tr
+        import curltrack.track.pipeline as pl
+        import curltrack.video as vid
+
+        self.wrap(tr.GridTracker, "update", "grid")
+        self.wrap(pl, "_calibrate", "calibrate")
+        self.wrap(pl._Follower, "detect", "markers")
+        self.wrap_iter(vid, "iter_frames")
+        return self
+
+    def __exit__(self, *exc):
+        for owner, name, orig in reversed(self._undo):
+            setattr(owner, name, orig)
+
+
+def bench_speed(width=960, height=540, n_frames=150, seed=0, motion="ladder",
+                threads=1, repeats=2, workdir=None) -> dict:
+    """Tracking speed against decoding alone, on one rendered shot, in one run.
+
+    The shot (a draw, v0 = 1.2 m/s, omega0 = 1.5 rad/s) is rendered at ``width`` x
+    ``height``; its first ``n_frames`` frames are decoded alone (iterating
+    :func:`curltrack.video.iter_frames`) and tracked (:func:`curltrack.track.track_video`
+    with ``end_frame``), each ``repeats`` times, alternating, and the fastest run of each
+    is kept.  Times are CPU times of this process (:data:`_now`; ``ratio_wall`` is the
+    same ratio in wall time, for reference).
+
+    Threads: ``cv2.setNumThreads(threads)`` and ``CURLTRACK_THREADS=threads`` are set
+    for both - the decoder and the tracker then use the same thread budget (OpenCV's
+    FFmpeg decoder takes its thread count from ``CURLTRACK_THREADS`` through
+    :func:`curltrack.video.decoder_threads`, the tracker's own OpenCV calls from
+    ``cv2.setNumThreads`` set in ``track_video``).  Default 1 thread per process, as
+    batch workers run.
+
+    Returns
+    -------
+    dict
+        ``decode_fps``, ``track_fps``, ``ratio`` (track / decode), per-frame ms of the
+        stages measured inside the tracking run (``decode_ms``, ``grid_ms``,
+        ``markers_ms``, ``other_ms``; ``calibrate_s`` the one-off calibration), the
+        accuracy against truth on the same frames (``pos_rms_mm``, ``theta_rms_deg``),
+        and the set-up.
+    """
+    import os
+
+    import cv2
+
+    from curltrack.physics.shot import ShotModel
+    from curltrack.render import CameraConfig, RenderConfig, render_video
+    from curltrack.rig import default_rig
+    from curltrack.simulate import simulate_series
+    from curltrack.track import track_video
+
+    os.environ["CURLTRACK_THREADS"] = str(int(threads))
+    cv2.setNumThreads(int(threads))
+    rig = default_rig()
+    work = Path(workdir or tempfile.mkdtemp(prefix="bench_speed_"))
+    sim = simulate_series(ShotModel(v0=1.2, omega0=1.5, alpha_y=0.02), fps=30)
+    sim.data = sim.data.iloc[:n_frames].reset_index(drop=True)
+    cam = CameraConfig(motion=motion)
+    video = work / f"speed_{width}x{height}_{motion}_{seed}.mp4"
+    truth = render_video(sim, rig, video, seed=seed,
+                         config=RenderConfig(camera=cam, width=width, height=height))
+    n = len(truth.data)
+    best_dec, best_trk, stages, series = np.inf, np.inf, None, None
+    wall_dec = wall_trk = np.inf
+    for _ in range(max(1, repeats)):
+        t0, w0 = _now(), time.perf_counter()
+        sum(1 for _ in _iter_frames(video))
+        best_dec = min(best_dec, _now() - t0)
+        wall_dec = min(wall_dec, time.perf_counter() - w0)
+        with _StageClock() as clock:
+            t0, w0 = _now(), time.perf_counter()
+            series = track_video(video, rig)
+            dt = _now() - t0
+            wall_trk = min(wall_trk, time.perf_counter() - w0)
+        if dt < best_trk:
+            best_trk, stages = dt, dict(clock.s)
+    m = series.data.merge(truth.data[["frame", "x", "y", "theta"]], on="frame",
+                          suffixes=("", "_t"))
+    ok = m["ok"] == 1
+    e = np.hypot(m.x - m.x_t, m.y - m.y_t)[ok]
+    eth = (m.theta - m.theta_t)[ok]
+    per = 1e3 / n
+    loop = best_trk - stages["calibrate"]
+    return {
+        "width": width, "height": height, "motion": motion, "frames": n, "threads": threads,
+        "decode_fps": n / best_dec, "track_fps": n / best_trk, "ratio": best_dec / best_trk,
+        "ratio_excl_calibration": best_dec / loop, "ratio_wall": wall_dec / wall_trk,
+        "decode_ms": stages["decode"] * per, "grid_ms": stages["grid"] * per,
+        "markers_ms": stages["markers"] * per, "calibrate_s": stages["calibrate"],
+        "other_ms": (loop - stages["decode"] - stages["grid"] - stages["markers"]) * per,
+        "pos_rms_mm": 1000 * float(np.sqrt(np.mean(e ** 2))),
+        "theta_rms_deg": float(np.degrees(np.sqrt(np.mean(eth ** 2)))),
+        "ok_fraction": float(ok.mean()),
+    }
+
+
+def _iter_frames(video):
+    from curltrack.video import iter_frames
+
+    return iter_frames(video)
+
+
+def bench_speed_1080p() -> dict:
+    """:func:`bench_speed` at 1920 x 1080 (one thread per process)."""
+    return bench_speed(1920, 1080)
+
+
 def bench_setup(motion="ladder", height_m=2.0, tilt_deg=1.5, k1=-0.08, spacing_m=0.15,
                 v0=1.0, omega0=1.5, alpha_y=0.02, occlusion=False, seed=0, workdir=None):
     """Render one shot, track it, compare with truth; return the figures."""

@@ -232,6 +232,12 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     progress : bool
         Show a progress bar (rich) on stderr.
 
+    Notes
+    -----
+    Threads: the decoder and OpenCV's own functions use ``CURLTRACK_THREADS`` threads
+    (environment variable, default 1 per process; 0 = OpenCV's choice); see
+    :func:`curltrack.video.decoder_threads`.
+
     Returns
     -------
     Series
@@ -250,7 +256,7 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     TrackingError
         No markers of the rig's colours, no grid, or the rock never measurable.
     """
-    from ..video import iter_frames, probe_video
+    from ..video import decoder_threads, iter_frames, probe_video
     from .results import build_series
 
     info = probe_video(video_path, fps_override=rig.fps)
@@ -272,10 +278,19 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
                          fps_override=rig.fps)
     total = end - start - len(exclude)
     bar = _progress_bar(total, str(video_path)) if progress else None
+    import cv2
+
+    # OpenCV's own threads (and the decoder's, in curltrack.video) = CURLTRACK_THREADS,
+    # default 1: the per-frame work is on small crops, and batch runs one process per core.
+    threads_before = cv2.getNumThreads()
+    n_threads = decoder_threads()
+    if n_threads > 0:
+        cv2.setNumThreads(n_threads)
     try:
         records, loop_info = track_frames(frames, rig, path=video_path,
                                           progress=bar[1] if bar else None)
     finally:
+        cv2.setNumThreads(threads_before)
         if bar:
             bar[0].stop()
     # Excluded frames are rows too (ok = 0), at their nominal time.
