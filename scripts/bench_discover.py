@@ -117,10 +117,16 @@ def main(argv=None):
     ap.add_argument("--clean", type=int, default=40)
     ap.add_argument("--effects", default=",".join(GRIDS))
     ap.add_argument("--json", default=None)
+    ap.add_argument("--grid", default=None,
+                    help="comma-separated strengths replacing the default grid(s)")
+    ap.add_argument("--seed0", type=int, default=1000)
     args = ap.parse_args(argv)
     effects = [e for e in args.effects.split(",") if e]
+    if args.grid:
+        for e in effects:
+            GRIDS[e] = [float(v) for v in args.grid.split(",")]
     res = {"false_alarm": false_alarm_rate(args.clean) if args.clean else None,
-           "detection": detection_table(effects, args.trials) if effects else {}}
+           "detection": detection_table(effects, args.trials, args.seed0) if effects else {}}
     print("\n| effect | strength unit | 90 % detection strength | 3x (test 'moderate') |")
     print("|---|---|---|---|")
     from _synth import STRENGTH

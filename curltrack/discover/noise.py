@@ -36,7 +36,9 @@ def _second_differences(frame, q, k):
     d2 = (q[2 * k:] - 2.0 * q[k:-k] + q[:-2 * k])[ok]
     if d2.size == 0:
         return d2
-    win = min(15, d2.size)
+    # window >> the 4k-sample reach of the lag-k noise correlation, so that the noise
+    # part of the running mean cancels (a shorter window biases rho upwards)
+    win = min(10 * k + 1, d2.size)
     kern = np.ones(win) / win
     trend = np.convolve(np.pad(d2, (win // 2, win - 1 - win // 2), mode="edge"), kern, "valid")
     return d2 - trend

@@ -4,8 +4,9 @@ Every function takes residuals that have been divided by the measurement noise a
 AR(1)-whitened (:mod:`curltrack.discover.noise`), so that under a correct model they are
 close to independent unit-variance noise.  Tests:
 
-* Ljung-Box portmanteau (autocorrelation up to ``h`` lags),
-* Wald-Wolfowitz runs test on the signs,
+* positive autocorrelation up to ``h`` lags (variance-ratio form; one-sided, since a
+  misfit correlates residuals positively -- :func:`ljung_box` is kept for reports),
+* Wald-Wolfowitz runs test on the signs (one-sided: too few runs),
 * binned means against a covariate (time, position along the sheet, speed): the sum of
   ``n_b * mean_b**2`` over bins is chi-square with ``n_bins`` degrees of freedom,
   and the worst bin says where the misfit sits,
@@ -49,10 +50,30 @@ def ljung_box(r, h: int | None = None) -> tuple[float, float]:
     return q, float(stats.chi2.sf(q, h))
 
 
-def runs_test(r) -> tuple[float, float]:
-    """Wald-Wolfowitz runs test on the signs of ``r``: (z, two-sided p).
+def variance_ratio(r, h: int | None = None) -> tuple[float, float]:
+    """One-sided test for positive autocorrelation: ``z = sqrt(n) sum_{k<=h} acf_k / sqrt(h)``.
 
-    Too few runs (long stretches of one sign) is what a smooth misfit produces.
+    A smooth misfit makes all low-lag autocorrelations positive (z >> 0); an imperfect
+    noise model (over-whitening) makes them negative, which is not a misfit and is not
+    flagged.  Returns (z, p) with p = P(Z > z).
+    """
+    r = np.asarray(r, dtype=float)
+    n = r.size
+    h = int(h or max(1, min(20, n // 5)))
+    c = r - r.mean()
+    denom = float(np.dot(c, c))
+    if n < 3 * h or denom == 0.0:
+        return 0.0, 1.0
+    acf = np.array([np.dot(c[k:], c[:-k]) / denom for k in range(1, h + 1)])
+    z = float(np.sqrt(n) * acf.sum() / np.sqrt(h))
+    return z, float(stats.norm.sf(z))
+
+
+def runs_test(r) -> tuple[float, float]:
+    """Wald-Wolfowitz runs test on the signs of ``r``: (z, one-sided p of too few runs).
+
+    Too few runs (long stretches of one sign) is what a smooth misfit produces; too
+    many runs only says the noise model over-whitens, and is not flagged.
     """
     s = np.asarray(r) > 0
     n1, n2 = int(s.sum()), int((~s).sum())
@@ -63,7 +84,7 @@ def runs_test(r) -> tuple[float, float]:
     mu = 2.0 * n1 * n2 / n + 1.0
     var = 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n * n * (n - 1.0))
     z = (runs - mu) / np.sqrt(var) if var > 0 else 0.0
-    return float(z), float(2 * stats.norm.sf(abs(z)))
+    return float(z), float(stats.norm.cdf(z))
 
 
 def binned_means(r, key, n_bins: int = 10) -> dict:
@@ -155,8 +176,8 @@ def structure_tests(segments, level: float = STRUCTURE_LEVEL) -> StructureResult
         if seg.r.size < 20:
             continue
         base = {"shot": seg.shot, "coord": seg.coord}
-        q, p = ljung_box(seg.r)
-        tests.append({**base, "test": "ljung_box", "stat": q, "p": p})
+        z, p = variance_ratio(seg.r)
+        tests.append({**base, "test": "autocorrelation", "stat": z, "p": p})
         z, p = runs_test(seg.r)
         tests.append({**base, "test": "runs", "stat": z, "p": p})
         for cov, key in (("time", seg.t), ("position_y", seg.y), ("speed", seg.speed)):
