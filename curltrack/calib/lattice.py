@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._stats import median
 from .lens import apply_h, undistort
 
 MIN_PERIOD_PX = 16.0  # shortest thread spacing looked for (px)
@@ -373,20 +374,37 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
     fam_a, fam_b = fam == 0, fam == 1
     ia = ib = idx.astype(float)
     na = int(fam_a.sum())
-    w0 = np.concatenate([w[fam_a], w[fam_b]])
+    # rows in family order (A then B), as _residuals/_h_jacobian order them
+    order = np.r_[np.flatnonzero(fam_a), np.flatnonzero(fam_b)]
+    qo, io = q[order], ia[order]
+    x, y = qo[:, 0], qo[:, 1]
+    row = np.r_[np.zeros(na, int), np.ones(len(order) - na, int)]
+    w0 = w[order]
+    J = np.zeros((len(order), 8))
     for it in range(iterations):
         pa, pb = periods_px(Hc, f)
-        r = _residuals(Hc, q, fam_a, fam_b, ia, ib, pa, pb)
+        p = np.where(row == 0, pa, pb)
+        wq = Hc[2, 0] * x + Hc[2, 1] * y + Hc[2, 2]
+        val = (Hc[row, 0] * x + Hc[row, 1] * y + Hc[row, 2]) / wq
+        r = (val - io) * p
         ww = w0.copy()
         # Tukey weights about each family's median residual (a common shift of a family
         # is the correction sought, not an outlier), scale from the MAD
         for part in (slice(0, na), slice(na, None)):
             rp = r[part]
             if rp.size:
-                med = np.median(rp)
-                scale = max(clip_px, 4.5 * 1.4826 * np.median(np.abs(rp - med)))
+                med = median(rp)
+                scale = max(clip_px, 4.5 * 1.4826 * median(np.abs(rp - med)))
                 ww[part] *= np.clip(1 - ((rp - med) / scale) ** 2, 0, None) ** 2
-        J = _h_jacobian(Hc, q, fam_a, fam_b, pa, pb)
+        # d(residual)/d(h0..h7), analytic (as _h_jacobian)
+        J[:] = 0.0
+        pw = p / wq
+        for rr, part in ((0, slice(0, na)), (1, slice(na, None))):
+            J[part, 3 * rr] = (pw * x)[part]
+            J[part, 3 * rr + 1] = (pw * y)[part]
+            J[part, 3 * rr + 2] = pw[part]
+        J[:, 6] = -pw * val * x
+        J[:, 7] = -pw * val * y
         JW = J * ww[:, None]
         A = J.T @ JW
         A += 1e-9 * np.trace(A) * np.eye(8)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._stats import median
 from .lens import apply_h, distort
 
 
@@ -217,8 +218,8 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         if dj.size:
             aj = away[fam == j]
             if aj.sum() > 0.1 * aj.size:
-                noise[j] = 1.4826 * np.median(np.abs(dj[aj])) + 1e-3
-            rel_floor[j] = 0.25 * np.median(dj.max(axis=1))
+                noise[j] = 1.4826 * median(np.abs(dj[aj])) + 1e-3
+            rel_floor[j] = 0.25 * median(dj.max(axis=1))
     det = np.maximum(det, 0.0)
     sig = np.maximum(sig, 0.0)
     floor = 0.3 * sig.max(axis=1, where=keep, initial=0.0)

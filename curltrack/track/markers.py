@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..calib._stats import median
 from ..rig import Rig, parse_color
 
 __all__ = ["MarkerDetector", "MarkerFrame", "lab_of_rgb"]
@@ -160,7 +161,7 @@ class MarkerDetector:
             return empty
         patch = image_bgr[y0:y1, x0:x1]
         lab = cv2.cvtColor(patch, cv2.COLOR_BGR2Lab).astype(np.float32)
-        bg_lab = np.median(lab.reshape(-1, 3)[::3], axis=0)
+        bg_lab = median(lab.reshape(-1, 3)[::3], axis=0)
         masks = self._class_masks(lab, bg_lab)
         cands = []  # per class: list of (centroid_xy, area) in full-image px
         for c, mask in enumerate(masks):
@@ -275,13 +276,14 @@ class MarkerDetector:
         core = rad <= 0.6 * r
         if ring.sum() < 8 or core.sum() < 1:
             return None
-        bg = np.median(win[ring], axis=0)
-        col = np.median(win[core], axis=0)
+        win_ring = win[ring]
+        bg = median(win_ring, axis=0)
+        col = median(win[core], axis=0)
         d = col - bg
         dd = float(d @ d)
         if dd < 25.0:  # < 5 grey levels apart: no usable contrast
             return None
-        noise = 1.4826 * np.median(np.abs(win[ring] - bg), axis=0).mean()
+        noise = 1.4826 * median(np.abs(win_ring - bg), axis=0).mean()
         # Project on the marker colour's chroma (d without its grey component) when it
         # has one: then shading of a neutral background (a cup ring, a light gradient on
         # grey granite or white ice) does not leak into the coverage and bias the centroid.
