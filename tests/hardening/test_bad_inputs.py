@@ -85,7 +85,6 @@ def test_zero_frame_video(cli, hdir, rig_file):
     cli.fails("track", v, "--rig", rig_file, "-o", out, output=out, names=[v])
 
 
-@pytest.mark.xfail(strict=True, reason="finding 1: FFmpeg logs to stderr (video.py)")
 def test_one_stderr_line_from_the_real_command(hdir, rig_file, good_clip):
     """The installed entry point, not just the app: FFmpeg's own log must stay quiet."""
     data = good_clip[0].read_bytes()
@@ -103,7 +102,6 @@ def test_one_stderr_line_from_the_real_command(hdir, rig_file, good_clip):
 # frame rate and length
 
 
-@pytest.mark.xfail(strict=False, reason="finding 12: VFR seen as truncated (video.py)")
 def test_variable_frame_rate_is_honoured(cli, hdir, rig_file):
     """Frames dropped irregularly from a 60 fps rendering: t from the container's stamps."""
     pytest.importorskip("av")
@@ -290,7 +288,6 @@ def test_fast_steady_camera_turn_is_flagged(cli, hdir, rig_file, wide_clip):
     assert any("camera turns" in w and "frame" in w for w in meta["warnings"])
 
 
-@pytest.mark.xfail(strict=False, reason="finding 13: NaN cast warning (calib/profiles.py)")
 def test_camera_turning_too_fast(cli, hdir, rig_file, wide_clip):
     """Erratic jumps of up to 30 deg between frames: cannot be followed -> exit 1."""
     video, truth, _ = wide_clip
