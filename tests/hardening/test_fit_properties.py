@@ -84,7 +84,7 @@ def test_valid_series_never_crash_the_fit(shot, fps, noise_m, noise_rad, seed, d
 
 
 @pytest.mark.xfail(strict=False, reason="findings 10/15: overflow/complex in derived quantities")
-@settings(max_examples=25, **SETTINGS)
+@settings(max_examples=20, **SETTINGS)
 @given(n=st.integers(0, 120), seed=st.integers(0, 2**16),
        kind=st.sampled_from(["noise", "walk", "constant", "linear", "huge", "tiny"]))
 def test_arbitrary_numbers_fail_cleanly(n, seed, kind):
