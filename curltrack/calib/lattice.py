@@ -235,6 +235,50 @@ def _normalised(xs, K, lens):
     return (undistort(xs, K2, lens[:2]) - K2[:2, 2]) / K2[0, 0]
 
 
+def _dq_dlens(xs, K, lens, q):
+    """d q / d (k1, k2, cx, cy) for normalised undistorted points ``q`` of observed
+    pixels ``xs`` (N, 2) under ``lens``, analytic; (N, 2, 4).
+
+    With ``d = (x - c) / f``, ``r_d = |d|`` and ``r (1 + k1 r^2 + k2 r^4) = r_d``:
+    ``q = d r / r_d``, ``dr/dk1 = -r^3 / D``, ``dr/dk2 = -r^5 / D``, ``dr/dr_d = 1 / D``
+    with ``D = 1 + 3 k1 r^2 + 5 k2 r^4``.
+    """
+    f = K[0, 0]
+    k1, k2, cx, cy = lens
+    d = (xs - (cx, cy)) / f
+    rd = np.hypot(d[:, 0], d[:, 1])
+    r2 = np.sum(q * q, axis=1)
+    D = 1.0 + r2 * (3.0 * k1 + 5.0 * k2 * r2)
+    out = np.empty((len(xs), 2, 4))
+    out[:, :, 0] = -q * (r2 / D)[:, None]
+    out[:, :, 1] = -q * (r2 * r2 / D)[:, None]
+    ok = rd > 1e-12
+    rs = np.where(ok, rd, 1.0)
+    r = np.sqrt(r2)
+    s = np.where(ok, r / rs, 1.0)
+    ds = np.where(ok, (rd / D - r) / (rs * rs), 0.0)  # d(r / r_d) / d r_d
+    for j, axis in ((2, 0), (3, 1)):
+        g = d * (ds * d[:, axis] / rs)[:, None]
+        g[:, axis] += s
+        out[:, :, j] = -g / f
+    return out
+
+
+def _lens_columns(Hc, xs, q, K, lens, fam_a, fam_b, pa, pb, free_idx):
+    """d(residual)/d(lens parameters ``free_idx``), rows as :func:`_residuals`."""
+    parts = []
+    for fam, row, p in ((fam_a, 0, pa), (fam_b, 1, pb)):
+        qq = q[fam]
+        x, y = qq[:, 0], qq[:, 1]
+        w = Hc[2, 0] * x + Hc[2, 1] * y + Hc[2, 2]
+        v = (Hc[row, 0] * x + Hc[row, 1] * y + Hc[row, 2]) / w
+        gx = p * (Hc[row, 0] - v * Hc[2, 0]) / w
+        gy = p * (Hc[row, 1] - v * Hc[2, 1]) / w
+        dq = _dq_dlens(xs[fam], _lens_K(K, lens), lens, qq)[:, :, free_idx]
+        parts.append(gx[:, None] * dq[:, 0] + gy[:, None] * dq[:, 1])
+    return np.vstack(parts)
+
+
 def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None,),
                 band_px=3.0, iterations: int = 4):
     """Refine the lattice homography (and optionally the lens) by robust Gauss-Newton.
@@ -270,7 +314,6 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
     lens = np.array([*(tuple(dist) + (0.0, 0.0))[:2], K[0, 2], K[1, 2]], float)
     lens0 = lens.copy()
     free_idx = [LENS_PARAMS.index(n) for n in free]
-    eps = np.array([1e-4, 1e-4, 0.5, 0.5])
     centre = lens[2:] if centre is None else np.asarray(centre, float)
     rad = np.hypot(*(xs - centre).T)
     q = _normalised(xs, K, lens)
@@ -278,31 +321,24 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
     bands = np.broadcast_to(np.asarray(band_px, float), (2,))
     info = {}
     for radius in radii:
-        sel = rad <= radius if radius is not None else np.ones(len(xs), bool)
+        # (the pixels of this stage's region only: the inner stages are small)
+        sel = slice(None) if radius is None else np.flatnonzero(rad <= radius)
+        xs_s, w_s, q_s = xs[sel], w[sel], q[sel]
         stage_free = free_idx if radius is None or radius > 0.5 * rad.max() else []
         for _ in range(iterations):
             pa, pb = periods_px(Hc, f)
-            ab = apply_h(Hc, q)
+            ab = apply_h(Hc, q_s)
             fam_a, fam_b, ia, ib = assign_families(ab[:, 0], ab[:, 1], pa, pb, bands)
-            fam_a &= sel
-            fam_b &= sel
             if fam_a.sum() < 20 or fam_b.sum() < 20:
                 break
-            r = _residuals(Hc, q, fam_a, fam_b, ia, ib, pa, pb)
-            ww = np.concatenate([w[fam_a], w[fam_b]])
+            r = _residuals(Hc, q_s, fam_a, fam_b, ia, ib, pa, pb)
+            ww = np.concatenate([w_s[fam_a], w_s[fam_b]])
             bw = np.concatenate([np.full(fam_a.sum(), bands[0]), np.full(fam_b.sum(), bands[1])])
             ww = ww * np.clip(1 - (r / bw) ** 2, 0, None) ** 2  # Tukey biweight
-            J = _h_jacobian(Hc, q, fam_a, fam_b, pa, pb)
-            cols = []
-            used = fam_a | fam_b
-            for j in stage_free:
-                l2 = lens.copy()
-                l2[j] += eps[j]
-                q2 = q.copy()
-                q2[used] = _normalised(xs[used], K, l2)
-                cols.append((_residuals(Hc, q2, fam_a, fam_b, ia, ib, pa, pb) - r) / eps[j])
-            if cols:
-                J = np.column_stack([J] + cols)
+            J = _h_jacobian(Hc, q_s, fam_a, fam_b, pa, pb)
+            if stage_free:
+                J = np.column_stack([J, _lens_columns(Hc, xs_s, q_s, K, lens, fam_a, fam_b,
+                                                      pa, pb, stage_free)])
             JW = J * ww[:, None]
             A = J.T @ JW
             g = -JW.T @ r
@@ -316,12 +352,14 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
             Hc = Hc + np.append(step[:8], 0.0).reshape(3, 3)
             if stage_free:
                 lens[stage_free] += step[8:]
-                q = _normalised(xs, K, lens)
+                q_s = _normalised(xs_s, K, lens)
             info = {"rms_px": float(np.sqrt(np.sum(ww * r * r) / max(ww.sum(), 1e-12))),
                     "n_a": int(fam_a.sum()), "n_b": int(fam_b.sum()),
                     "lines_a": int(len(np.unique(ia[fam_a]))),
                     "lines_b": int(len(np.unique(ib[fam_b]))),
                     "step": float(np.abs(step[:8]).max())}
+        if stage_free:  # the lens moved: every pixel's normalised position
+            q = q_s if radius is None else _normalised(xs, K, lens)
     return Hc, _lens_K(K, lens), (float(lens[0]), float(lens[1])), info
 
 

@@ -32,7 +32,9 @@ from .profiles import sample_threads
 from .lens import apply_h
 
 AMBIGUOUS_CELLS = 0.35  # unexplained jump (cells) beyond which the index is not trusted
-PROFILE_STEP_PX = 18.0  # spacing of the cross profiles along each thread (px)
+PROFILE_STEP_PX = 18.0  # spacing of the cross profiles along each thread (px), at least
+PROFILES_PER_CELL = 2.5  # at most this many profiles per cell along a thread: a sharper
+# (larger) view measures each profile as well in px, hence better in metres
 COLOUR_CHECK_EVERY = 10  # frames between routine checks of the thread colour sequence
 COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap
 SHUTTER = 0.5  # assumed exposure (fraction of a frame) for the motion-blur filter
@@ -151,9 +153,11 @@ class GridTracker:
         # (the smear of a thread is shutter x motion long: +-0.25 x motion for a half-open
         # shutter; 0.3 leaves room for a longer exposure)
         base = 5.0 if coarse else 6.0
-        half = [min(base + 0.3 * blur[j], 0.4 * p) for j, p in enumerate(periods_px(Hc, f))]
+        periods = periods_px(Hc, f)
+        half = [min(base + 0.3 * blur[j], 0.4 * p) for j, p in enumerate(periods)]
+        step = max(PROFILE_STEP_PX, min(periods) / PROFILES_PER_CELL)
         obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model, half,
-                             step_px=PROFILE_STEP_PX, mask=mask, gap_px=gap,
+                             step_px=step, mask=mask, gap_px=gap,
                              blur_px=SHUTTER * blur)
         if obs is None or np.sum(obs["fam"] == 0) < 10 or np.sum(obs["fam"] == 1) < 10:
             return Hc, None, obs

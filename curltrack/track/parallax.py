@@ -68,11 +68,13 @@ def _rt_from_h(A: np.ndarray, f: float, pp) -> tuple[np.ndarray, np.ndarray]:
     M = Kinv @ A
     lam = 2.0 / (np.linalg.norm(M[:, 0]) + np.linalg.norm(M[:, 1]))
     r1, r2, t = M[:, 0] * lam, M[:, 1] * lam, M[:, 2] * lam
-    r3 = np.cross(r1, r2)
-    R = np.column_stack([r1, r2, r3])
+    r3 = np.array([r1[1] * r2[2] - r1[2] * r2[1], r1[2] * r2[0] - r1[0] * r2[2],
+                   r1[0] * r2[1] - r1[1] * r2[0]])  # r1 x r2 (np.cross is slow on 3-vectors)
+    R = np.empty((3, 3))
+    R[:, 0], R[:, 1], R[:, 2] = r1, r2, r3
     C = -R.T @ t
     if C[2] < 0:  # the camera is above the ice
-        R = np.column_stack([-r1, -r2, r3])
+        R[:, 0], R[:, 1] = -r1, -r2
         C = -R.T @ (-t)
     return R, C
 
@@ -86,8 +88,9 @@ def camera_centre(H_img2ice: np.ndarray, f: float, pp) -> np.ndarray:
 def focal_for_height(H_img2ice: np.ndarray, height_m: float, pp, f0: float = 1000.0) -> float:
     """Focal length (px) that puts the lens ``height_m`` above the plane (z grows ~ f)."""
     f = f0
+    A = np.linalg.inv(H_img2ice)
     for _ in range(6):
-        z = camera_centre(H_img2ice, f, pp)[2]
+        z = _rt_from_h(A, f, pp)[1][2]
         if not np.isfinite(z) or z <= 0:
             return float("nan")
         f *= height_m / z
