@@ -16,9 +16,9 @@ from curltrack.discover import discover
 #: moderate strengths: ~3x the 90 %-detection strength at 2 mm noise (bench_discover.py)
 MODERATE = {
     "pick": (0.005, 0.007),                       # |dvx| m/s; 90 % at 0.002
-    "late_curl": (0.06, 0.12),                    # |k|
-    "friction_patch": (0.09, 0.12),               # |factor - 1| over 3-5 m; 90 % ~0.035
-    "ice_slope": (0.012, 0.018),                  # |slope_x| mm/m, two shots; 90 % ~0.005
+    "late_curl": (0.2, 0.28),                     # |k|; 90 % at 0.08
+    "friction_patch": (0.15, 0.2),                # |factor - 1| over 3-5 m; 90 % ~0.057
+    "ice_slope": (0.02, 0.03),                    # |slope_x| mm/m, two shots; 90 % ~0.008
     "velocity_dependent_friction": (0.004, 0.005),  # -phi, dry baseline; 90 % ~0.0014
 }
 N_SHOTS = {"ice_slope": 2}
