@@ -36,6 +36,12 @@ _L_WEIGHT = 0.5
 _ADAPT = 0.15  # weight of a new observation in the running marker colour
 _WIN = (1.6, 1.5)
 _FLOOR = 0.1
+#: Markers at least this large (radius, px) are classified at half resolution (a blob of
+#: ~20 px is still a blob there); their sub-pixel centroid is measured at full resolution.
+_LOWRES_RADIUS_PX = 5.0
+#: Frames at least this large (short side, px) are first searched at half resolution
+#: while the marker size is unknown (full resolution when that misses a marker).
+_LOWRES_FIRST_MIN_PX = 720
 
 
 def lab_of_rgb(rgb) -> np.ndarray:
@@ -128,7 +134,64 @@ class MarkerDetector:
             masks.append((nearest == c) & (d[c] < half_to_bg))
         return masks
 
+    def _is_class(self, obs_lab, bg_lab, i) -> bool:
+        """The nearest-prototype rule of :meth:`_class_masks` for one colour."""
+        c = self.class_of[i]
+        class_lab = self.colors_lab[self.class_of == c].mean(axis=0)
+        others = [self.colors_lab[self.class_of == k].mean(axis=0)
+                  for k in range(self.n_classes) if k != c]
+        protos = _weigh(np.vstack([class_lab[None], *[o[None] for o in others],
+                                   self.thread_lab, bg_lab[None]]))
+        d = np.sum((protos - _weigh(obs_lab)) ** 2, axis=1)
+        return bool(np.argmin(d) == 0 and d[0] < 0.25 * np.sum((protos[0] - protos[-1]) ** 2))
+
     # --- public ------------------------------------------------------------------------
+    def refine_at(self, image_bgr: np.ndarray, predicted: np.ndarray) -> MarkerFrame | None:
+        """Markers measured directly around well-predicted positions, or None.
+
+        The sub-pixel step of :meth:`detect` started at the prediction instead of at a
+        classified blob (no colour classification of a search window).  Accepted only
+        when every marker is found within half a marker radius (+1 px) of where the
+        refinement started (the prediction, or once more where that converged; within
+        :meth:`detect`'s gate of the prediction), with the expected size and colour class, and the markers' mutual
+        distances agree with the prediction's to 3 % (+1 px); otherwise None and the
+        caller runs :meth:`detect`.
+
+        Parameters
+        ----------
+        image_bgr : (H, W, 3) uint8
+        predicted : (M, 2) array
+            Predicted centroids (observed image px).
+        """
+        if self.area_px is None or not np.isfinite(predicted).all():
+            return None
+        M = len(self.rig.markers)
+        r = np.sqrt(self.area_px / np.pi)
+        xy, sig, area, con = np.full((M, 2), np.nan), np.full(M, np.nan), np.zeros(M), np.zeros(M)
+        saved = self.colors_lab.copy()
+        for i in range(M):
+            start = predicted[i]
+            for _ in range(2):  # (a second start where the first one converged to)
+                res = self._refine(image_bgr, None, None, start, self.area_px, i,
+                                   check_class=True)
+                if res is None or np.hypot(*(res[0] - start)) <= 0.5 * r + 1.0:
+                    break
+                start = res[0]
+            if (res is None or np.hypot(*(res[0] - start)) > 0.5 * r + 1.0
+                    or np.hypot(*(res[0] - predicted[i])) > 3.0 * r + 10.0  # detect's gate
+                    or not 0.5 < res[2] / self.area_px < 2.0):
+                self.colors_lab = saved
+                return None
+            xy[i], sig[i], area[i], con[i] = res
+        for a, b in itertools.combinations(range(M), 2):
+            d_now = np.hypot(*(xy[a] - xy[b]))
+            d_pred = np.hypot(*(predicted[a] - predicted[b]))
+            if abs(d_now - d_pred) > 0.03 * d_pred + 1.0:
+                self.colors_lab = saved
+                return None
+        self.area_px = 0.9 * self.area_px + 0.1 * float(np.median(area))
+        return MarkerFrame(xy, sig, area, con, "")
+
     def detect(self, image_bgr: np.ndarray, predicted: np.ndarray | None = None,
                roi: tuple | None = None, gate_px: float | None = None) -> MarkerFrame:
         """Find the markers in ``image_bgr`` (or its ``roi`` = (x0, y0, x1, y1) px).
@@ -148,8 +211,6 @@ class MarkerDetector:
         -------
         MarkerFrame
         """
-        import cv2
-
         H, W = image_bgr.shape[:2]
         x0, y0, x1, y1 = (0, 0, W, H) if roi is None else roi
         x0, y0 = max(0, int(x0)), max(0, int(y0))
@@ -159,20 +220,20 @@ class MarkerDetector:
                             np.zeros(M), "search window outside the image")
         if x1 - x0 < 4 or y1 - y0 < 4:
             return empty
-        patch = image_bgr[y0:y1, x0:x1]
-        lab = cv2.cvtColor(patch, cv2.COLOR_BGR2Lab).astype(np.float32)
-        bg_lab = median(lab.reshape(-1, 3)[::3], axis=0)
-        masks = self._class_masks(lab, bg_lab)
-        cands = []  # per class: list of (centroid_xy, area) in full-image px
-        for c, mask in enumerate(masks):
-            n, _, stats, cents = cv2.connectedComponentsWithStats(mask.view(np.uint8), 8)
-            areas = stats[1:, cv2.CC_STAT_AREA].astype(float)
-            xy = cents[1:] + (x0, y0)
-            min_area = 3.0 if self.area_px is None else max(3.0, 0.25 * self.area_px)
-            keep = areas >= min_area
-            order = np.argsort(-areas[keep])[:6]
-            cands.append((xy[keep][order], areas[keep][order]))
-        pick = self._assign(cands, predicted, gate_px)
+        big = self.area_px is not None and self.area_px >= np.pi * _LOWRES_RADIUS_PX ** 2
+        if min(x1 - x0, y1 - y0) < 8:
+            steps = (1,)
+        elif big:
+            steps = (2,)
+        elif self.area_px is None and min(H, W) >= _LOWRES_FIRST_MIN_PX:
+            steps = (2, 1)  # marker size not known yet: half resolution first
+        else:
+            steps = (1,)
+        for step in steps:
+            cands = self._candidates(image_bgr, (x0, y0, x1, y1), step)
+            pick = self._assign(cands, predicted, gate_px)
+            if all(c_xy is not None for c_xy, _ in pick):
+                break
         xy = np.full((M, 2), np.nan)
         sig = np.full(M, np.nan)
         area = np.zeros(M)
@@ -180,7 +241,7 @@ class MarkerDetector:
         for i, (c_xy, c_area) in enumerate(pick):
             if c_xy is None:
                 continue
-            res = self._refine(image_bgr, lab, (x0, y0), c_xy, c_area, i)
+            res = self._refine(image_bgr, None, (x0, y0), c_xy, c_area, i)
             # The classified blob can be smaller than the marker (blur, a colour model
             # not yet adapted): then the window cut the marker; redo it at the coverage
             # area found.
@@ -188,7 +249,7 @@ class MarkerDetector:
                 if res is None or res[2] < 1.2 * c_area:
                     break
                 c_xy, c_area = res[0], res[2]
-                res = self._refine(image_bgr, lab, (x0, y0), c_xy, c_area, i)
+                res = self._refine(image_bgr, None, (x0, y0), c_xy, c_area, i)
             if res is not None:
                 xy[i], sig[i], area[i], con[i] = res
         missing = [self.rig.markers[i].color for i in range(M) if not np.isfinite(xy[i, 0])]
@@ -197,6 +258,30 @@ class MarkerDetector:
             self.area_px = (float(np.median(area)) if self.area_px is None
                             else 0.9 * self.area_px + 0.1 * float(np.median(area)))
         return MarkerFrame(xy, sig, area, con, msg)
+
+    def _candidates(self, image_bgr, box, step):
+        """Per colour class: up to 6 blobs (centroids px, areas px^2, full-image units)
+        of the window ``box`` = (x0, y0, x1, y1), classified at 1/``step`` resolution."""
+        import cv2
+
+        x0, y0, x1, y1 = box
+        patch = image_bgr[y0:y1, x0:x1]
+        if step == 2:  # pixel (u, v) = the mean of full-res pixels 2u..2u+1, 2v..2v+1
+            patch = cv2.resize(patch, ((x1 - x0) // 2, (y1 - y0) // 2),
+                               interpolation=cv2.INTER_AREA)
+        lab = cv2.cvtColor(patch, cv2.COLOR_BGR2Lab).astype(np.float32)
+        bg_lab = median(lab.reshape(-1, 3)[::3], axis=0)
+        masks = self._class_masks(lab, bg_lab)
+        cands = []
+        for c, mask in enumerate(masks):
+            n, _, stats, cents = cv2.connectedComponentsWithStats(mask.view(np.uint8), 8)
+            areas = stats[1:, cv2.CC_STAT_AREA].astype(float) * step ** 2
+            xy = cents[1:] * step + (0.5 * (step - 1) + x0, 0.5 * (step - 1) + y0)
+            min_area = 3.0 if self.area_px is None else max(3.0, 0.25 * self.area_px)
+            keep = areas >= min_area
+            order = np.argsort(-areas[keep])[:6]
+            cands.append((xy[keep][order], areas[keep][order]))
+        return cands
 
     # --- identity ----------------------------------------------------------------------
     def _assign(self, cands, predicted, gate_px):
@@ -257,8 +342,12 @@ class MarkerDetector:
         return cost
 
     # --- sub-pixel -----------------------------------------------------------------------
-    def _refine(self, image_bgr, lab, offset, c_xy, c_area, i):
-        """Coverage-weighted centroid around a blob; (xy, sigma, area, contrast) or None."""
+    def _refine(self, image_bgr, lab, offset, c_xy, c_area, i, check_class=False):
+        """Coverage-weighted centroid around a blob; (xy, sigma, area, contrast) or None.
+
+        ``check_class``: also None unless the blob's core colour passes the
+        classification rule of :meth:`_class_masks` for marker ``i``.
+        """
         H, W = image_bgr.shape[:2]
         r = max(1.5, np.sqrt(c_area / np.pi))
         R_in, R_out = _WIN[0] * r + _WIN[1], 2.4 * r + 3.0
@@ -291,15 +380,16 @@ class MarkerDetector:
         d_c = d - (d @ grey) * grey
         proj = d_c if d_c @ d_c > 0.25 * dd else d
         den = float(proj @ d)
+        # the coverage does not depend on the centre: once; only the disc moves
+        diff = win - bg
+        s = diff @ proj / den
+        res = diff - s[..., None] * d
+        if proj is d_c:
+            res = res - (res @ grey)[..., None] * grey
+        perp = np.linalg.norm(res, axis=-1)
+        cover = np.clip((s - _FLOOR) / (1 - _FLOOR), 0.0, 1.0) * (perp < 0.35 * np.sqrt(dd) + 2 * noise)
         for _ in range(2):
-            diff = win - bg
-            s = diff @ proj / den
-            res = diff - s[..., None] * d
-            if proj is d_c:
-                res = res - (res @ grey)[..., None] * grey
-            perp = np.linalg.norm(res, axis=-1)
-            w = np.clip((s - _FLOOR) / (1 - _FLOOR), 0.0, 1.0) * (perp < 0.35 * np.sqrt(dd) + 2 * noise)
-            w = w * (np.hypot(xx - cx, yy - cy) <= R_in)
+            w = cover * (np.hypot(xx - cx, yy - cy) <= R_in)
             sw = w.sum()
             if sw <= 0.5:
                 return None
@@ -308,8 +398,10 @@ class MarkerDetector:
         inside = np.hypot(xx - cx, yy - cy) <= R_in
         r2 = ((xx - cx) ** 2 + (yy - cy) ** 2)[inside].sum()
         sigma = float(sigma_w * np.sqrt(r2 / 2.0) / sw)
-        # Adapt the colour model to what the camera shows (slowly, and only when sure).
         obs_lab = lab_of_rgb(np.clip(col, 0, 255))
+        if check_class and not self._is_class(obs_lab, lab_of_rgb(np.clip(bg, 0, 255)), i):
+            return None
+        # Adapt the colour model to what the camera shows (slowly, and only when sure).
         self.colors_lab[i] = (1 - _ADAPT) * self.colors_lab[i] + _ADAPT * obs_lab
         contrast = float(np.linalg.norm(_weigh(obs_lab) - _weigh(lab_of_rgb(np.clip(bg, 0, 255)))))
         return np.array([cx, cy]), sigma, float(sw), contrast

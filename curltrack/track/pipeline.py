@@ -89,10 +89,13 @@ class _Follower:
                 self.lost += 1
                 return None
             mf = self.det.detect(image)
+        elif (mf := self.det.refine_at(image, pred)) is not None:
+            pass  # measured where predicted: no search needed
         else:
-            # Look only around the predicted markers (the gate plus the refine window).
+            # Look only around the predicted markers: the gate (3 radii + 10 px) plus a
+            # whole blob (the sub-pixel refinement reads the full image, not this window).
             r_mk = np.sqrt((self.det.area_px or 50.0) / np.pi)
-            m = 6.0 * r_mk + 16.0
+            m = 4.5 * r_mk + 14.0
             lo, hi = pred.min(axis=0) - m, pred.max(axis=0) + m + 1
             mf = self.det.detect(image, predicted=pred, roi=(lo[0], lo[1], hi[0], hi[1]))
             if not mf.found.all():  # a jolt of the camera: retry on the whole rock
