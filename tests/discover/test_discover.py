@@ -69,11 +69,11 @@ def _check_effect(effect, seed):
     assert not f["structure_after"]["structured"]
 
 
-# --- default suite: one random draw of the fast effects, clean shots -------------------
+# --- default suite: one random draw of the fastest effect, clean shots ------------------
 
-@pytest.mark.parametrize("effect", ["pick", "late_curl"])
-def test_hidden_effect_found_quick(effect):
-    _check_effect(effect, seed=101)
+def test_hidden_effect_found_quick():
+    """One random pick (the fastest effect); every effect over several draws is slow."""
+    _check_effect("pick", seed=101)
 
 
 def test_clean_shots_give_none():
