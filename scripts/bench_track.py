@@ -1,10 +1,24 @@
 """Tracking accuracy and speed per set-up (rendered shots against their truth).
 
-    python scripts/bench_track.py [--quick]
+    python scripts/bench_track.py [--quick | --speed]
 
 ``bench_setup(...)`` returns a dict of figures for one set-up (used by scripts/bench.py):
 position RMS (mm), theta RMS (deg), stop-frame errors (frames), parallax factor error
 (%), and the speed ratio tracking fps / decode-only fps measured in the same run.
+
+``bench_speed(width, height, ...)`` (and ``bench_speed_1080p()``, called by
+scripts/bench.py) measures tracking against decoding alone on the same rendered video in
+one run, with the per-stage milliseconds per frame (decode, grid, markers, other) and
+the one-off calibration, and the accuracy against truth on the same frames.
+
+Threads (how the ratio is configured): both the decode-only pass and tracking run with
+``CURLTRACK_THREADS`` threads, default 1.  That variable sets the FFmpeg decoder's
+thread count (``cv2.CAP_PROP_N_THREADS`` when curltrack.video opens the file, see
+``curltrack.video.decoder_threads``) and ``track_video`` sets ``cv2.setNumThreads`` to
+it for its own OpenCV calls (restored afterwards); ``bench_speed(threads=N)`` sets both.
+One thread per process is how batch runs work (one video per core), and it makes CPU
+time a fair measure on a shared machine: speeds are CPU time of the process, the wall
+clock ratio is reported beside it (``ratio_wall``).
 """
 
 from __future__ import annotations
@@ -136,9 +150,15 @@ def bench_speed(width=960, height=540, n_frames=150, seed=0, motion="ladder",
     sim = simulate_series(ShotModel(v0=1.2, omega0=1.5, alpha_y=0.02), fps=30)
     sim.data = sim.data.iloc[:n_frames].reset_index(drop=True)
     cam = CameraConfig(motion=motion)
-    video = work / f"speed_{width}x{height}_{motion}_{seed}.mp4"
-    truth = render_video(sim, rig, video, seed=seed,
-                         config=RenderConfig(camera=cam, width=width, height=height))
+    video = work / f"speed_{width}x{height}_{motion}_{seed}_{n_frames}.mp4"
+    truth_path = video.with_suffix(".truth.csv")
+    if video.exists() and truth_path.exists():  # (a workdir given twice: render once)
+        from curltrack.series import read_series
+
+        truth = read_series(truth_path)
+    else:
+        truth = render_video(sim, rig, video, truth_path, seed=seed,
+                             config=RenderConfig(camera=cam, width=width, height=height))
     n = len(truth.data)
     best_dec, best_trk, stages, series = np.inf, np.inf, None, None
     wall_dec = wall_trk = np.inf
@@ -249,6 +269,15 @@ def main(argv=None):
     keys = ["motion", "height_m", "tilt_deg", "spacing_m", "pos_rms_mm", "theta_rms_deg",
             "stop_err_translation_frames", "stop_err_rotation_frames", "parallax_err_pct",
             "speed_ratio"]
+    if "--speed" in argv:
+        for w, h in ((960, 540), (1920, 1080)):
+            r = bench_speed(w, h)
+            print(f"{w}x{h}: decode {r['decode_fps']:.0f} fps, track {r['track_fps']:.0f} fps,"
+                  f" ratio {r['ratio']:.3f} (without calibration "
+                  f"{r['ratio_excl_calibration']:.3f}); ms/frame decode {r['decode_ms']:.2f}"
+                  f" grid {r['grid_ms']:.2f} markers {r['markers_ms']:.2f} other "
+                  f"{r['other_ms']:.2f}; calibration {r['calibrate_s']:.2f} s", flush=True)
+        return
     print("  ".join(keys))
     for s in setups:
         r = bench_setup(**s)

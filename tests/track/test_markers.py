@@ -71,3 +71,36 @@ def test_wrong_colours_are_not_found():
     mf = MarkerDetector(wrong).detect(img)
     assert not mf.found.any()
     assert "not found" in mf.message
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_refine_at_a_prediction_is_as_precise_as_detect(seed):
+    """Markers measured where predicted (up to ~2 px off): the same sub-pixel answer."""
+    rng = np.random.default_rng(10 + seed)
+    rig = default_rig()
+    while True:  # (markers at the image border are refused by design: draw again)
+        img, truth, _ = _scene(rng, rig, seed=seed)
+        if np.all((truth > 15) & (truth < np.array(img.shape[1::-1]) - 15)):
+            break
+    det = MarkerDetector(rig)
+    assert det.detect(img).found.all()  # (learns the marker size)
+    r = np.sqrt(det.area_px / np.pi)
+    off = rng.uniform(-1, 1, truth.shape) * (0.35 * r + 0.5)
+    mf = det.refine_at(img, truth + off)
+    assert mf is not None and mf.found.all()
+    assert np.hypot(*(mf.xy_px - truth).T).max() < 0.06
+
+
+def test_refine_at_refuses_what_does_not_fit():
+    rng = np.random.default_rng(20)
+    rig = default_rig()
+    img, truth, _ = _scene(rng, rig)
+    det = MarkerDetector(rig)
+    assert det.refine_at(img, truth) is None  # marker size not known yet
+    assert det.detect(img).found.all()
+    colours = det.colors_lab.copy()
+    # the markers swapped (wrong colour class at each prediction)
+    assert det.refine_at(img, truth[::-1]) is None
+    # a prediction on bare ice
+    assert det.refine_at(img, truth + 40.0) is None
+    np.testing.assert_array_equal(det.colors_lab, colours)  # the colour model untouched
