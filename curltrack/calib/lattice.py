@@ -80,12 +80,15 @@ def _refine_wavevector(xs, w, k, n_steps: int = 5):
     for _ in range(3):
         kc = best_k
         grid = np.linspace(-span, span, n_steps)
-        for dx in grid:
-            for dy in grid:
-                kk = kc + (dx, dy)
-                z = abs(np.sum(w * np.exp(2j * np.pi * (xs @ kk))))
-                if z > best_z:
-                    best_z, best_k = z, kk
+        # all (dx, dy) of the grid at once: exp(2 pi i (k + d).x) factorises into the
+        # centre's term times one factor per axis, so the sums are one matrix product
+        e0 = w * np.exp(2j * np.pi * (xs @ kc))
+        ex = np.exp(2j * np.pi * np.outer(grid, xs[:, 0]))
+        ey = np.exp(2j * np.pi * np.outer(grid, xs[:, 1]))
+        Z = np.abs((ex * e0) @ ey.T)  # [dx index, dy index]
+        i, j = np.unravel_index(np.argmax(Z), Z.shape)
+        if Z[i, j] > best_z:
+            best_z, best_k = Z[i, j], kc + (grid[i], grid[j])
         span /= n_steps - 1
     k = best_k
     z = np.sum(w * np.exp(2j * np.pi * (xs @ k)))
@@ -235,9 +238,10 @@ def _normalised(xs, K, lens):
     return (undistort(xs, K2, lens[:2]) - K2[:2, 2]) / K2[0, 0]
 
 
-def _dq_dlens(xs, K, lens, q):
+def _dq_dlens(xs, K, lens, q, which=(0, 1, 2, 3)):
     """d q / d (k1, k2, cx, cy) for normalised undistorted points ``q`` of observed
-    pixels ``xs`` (N, 2) under ``lens``, analytic; (N, 2, 4).
+    pixels ``xs`` (N, 2) under ``lens``, analytic; (N, 2, len(which)) for the
+    parameters ``which`` (indices into k1, k2, cx, cy).
 
     With ``d = (x - c) / f``, ``r_d = |d|`` and ``r (1 + k1 r^2 + k2 r^4) = r_d``:
     ``q = d r / r_d``, ``dr/dk1 = -r^3 / D``, ``dr/dk2 = -r^5 / D``, ``dr/dr_d = 1 / D``
@@ -249,18 +253,23 @@ def _dq_dlens(xs, K, lens, q):
     rd = np.hypot(d[:, 0], d[:, 1])
     r2 = np.sum(q * q, axis=1)
     D = 1.0 + r2 * (3.0 * k1 + 5.0 * k2 * r2)
-    out = np.empty((len(xs), 2, 4))
-    out[:, :, 0] = -q * (r2 / D)[:, None]
-    out[:, :, 1] = -q * (r2 * r2 / D)[:, None]
-    ok = rd > 1e-12
-    rs = np.where(ok, rd, 1.0)
-    r = np.sqrt(r2)
-    s = np.where(ok, r / rs, 1.0)
-    ds = np.where(ok, (rd / D - r) / (rs * rs), 0.0)  # d(r / r_d) / d r_d
-    for j, axis in ((2, 0), (3, 1)):
-        g = d * (ds * d[:, axis] / rs)[:, None]
-        g[:, axis] += s
-        out[:, :, j] = -g / f
+    out = np.empty((len(xs), 2, len(which)))
+    if 2 in which or 3 in which:
+        ok = rd > 1e-12
+        rs = np.where(ok, rd, 1.0)
+        r = np.sqrt(r2)
+        s = np.where(ok, r / rs, 1.0)
+        ds = np.where(ok, (rd / D - r) / (rs * rs), 0.0)  # d(r / r_d) / d r_d
+    for col, j in enumerate(which):
+        if j == 0:
+            out[:, :, col] = -q * (r2 / D)[:, None]
+        elif j == 1:
+            out[:, :, col] = -q * (r2 * r2 / D)[:, None]
+        else:
+            axis = j - 2
+            g = d * (ds * d[:, axis] / rs)[:, None]
+            g[:, axis] += s
+            out[:, :, col] = -g / f
     return out
 
 
@@ -274,7 +283,7 @@ def _lens_columns(Hc, xs, q, K, lens, fam_a, fam_b, pa, pb, free_idx):
         v = (Hc[row, 0] * x + Hc[row, 1] * y + Hc[row, 2]) / w
         gx = p * (Hc[row, 0] - v * Hc[2, 0]) / w
         gy = p * (Hc[row, 1] - v * Hc[2, 1]) / w
-        dq = _dq_dlens(xs[fam], _lens_K(K, lens), lens, qq)[:, :, free_idx]
+        dq = _dq_dlens(xs[fam], _lens_K(K, lens), lens, qq, tuple(free_idx))
         parts.append(gx[:, None] * dq[:, 0] + gy[:, None] * dq[:, 1])
     return np.vstack(parts)
 
