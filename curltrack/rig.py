@@ -7,6 +7,7 @@ lengths that look like centimetres (e.g. ``diameter_m = 29``) are an error too.
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -146,7 +147,11 @@ def _number(table: dict, key: str, section: str, default=None, required=False):
             raise RigError("missing required field", where=where)
         return default
     value = table[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+    try:
+        finite = math.isfinite(value)  # also copes with integers too large for a float
+    except (TypeError, OverflowError):
+        finite = False
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not finite:
         raise RigError(f"expected a finite number, got {value!r}", where=where)
     lo, hi = _RANGES[f"{section}.{key}"]
     if not lo <= value <= hi:
