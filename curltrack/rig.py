@@ -191,6 +191,8 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
             parse_color(c, where=f"[grid].colors[{i}]")
         markers = []
         for i, m in enumerate(markers_raw):
+            if not isinstance(m, dict):
+                raise RigError("expected a table", where=f"[[markers]][{i}]")
             _check_keys(m, "markers")
             if "color" not in m:
                 raise RigError("missing required field", where=f"[[markers]][{i}].color")
@@ -233,9 +235,13 @@ def load_rig(path) -> Rig:
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
         raise RigError(f"cannot read rig file ({exc.strerror})", path=path) from None
+    try:
+        text = raw.decode("utf-8-sig")  # TOML is UTF-8; tolerate an editor's byte-order mark
+    except UnicodeDecodeError:
+        raise RigError("not a text (UTF-8) file", path=path) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

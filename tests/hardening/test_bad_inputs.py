@@ -348,7 +348,6 @@ def test_rig_unknown_keys(cli, hdir, good_clip, edit, where):
     cli.fails("track", good_clip[0], "--rig", rig, "-o", out, output=out, names=[rig, where])
 
 
-@pytest.mark.xfail(strict=False, reason="finding 14: non-UTF-8 rig (rig.py)")
 @pytest.mark.parametrize("content", [b"\x00\xff\xfe garbage", b"[grid\nspacing_x_m = 0.15",
                                      b""])
 def test_rig_unreadable(cli, hdir, good_clip, content):

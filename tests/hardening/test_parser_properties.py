@@ -62,7 +62,6 @@ def test_any_rig_mapping_is_valid_or_names_the_field(edits):
     assert rig.fps is None or 1 <= rig.fps <= 1000
 
 
-@pytest.mark.xfail(strict=False, reason="finding 14: non-UTF-8 rig (rig.py)")
 @settings(max_examples=80, **SETTINGS)
 @given(blob=st.one_of(st.binary(max_size=200), st.text(max_size=200).map(str.encode)))
 def test_any_rig_bytes_load_or_fail_cleanly(tmp_path, blob):
