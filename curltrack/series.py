@@ -72,6 +72,15 @@ def make_meta(fps: float, n_frames: int, start_frame: int = 0, **extra) -> dict:
     return meta
 
 
+def _plain(value) -> str:
+    """A number as a reader would write it: ``2``, ``1.5`` (never ``np.float64(1.5)``)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return repr(value)
+    return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
+
+
 def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, list[str]]:
     """Check a series table against the contract; return a clean copy and warnings.
 
@@ -102,7 +111,7 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
             raise SeriesError(f"empty '{col}'", path=name, where=f"row {row + 2}")
     if not np.isin(out["ok"], (0, 1)).all():
         row = int(np.flatnonzero(~np.isin(out["ok"], (0, 1)))[0])
-        raise SeriesError(f"'ok' must be 0 or 1, got {out['ok'].iloc[row]!r}",
+        raise SeriesError(f"'ok' must be 0 or 1, got {_plain(out['ok'].iloc[row])}",
                           path=name, where=f"row {row + 2}")
     t = out["t"].to_numpy()
     if not np.isfinite(t).all():
@@ -112,7 +121,7 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
     if (dt <= 0).any():
         row = int(np.flatnonzero(dt <= 0)[0]) + 1
         kind = "duplicate" if dt[row - 1] == 0 else "decreasing"
-        raise SeriesError(f"{kind} time t={t[row]!r} (t must increase)", path=name,
+        raise SeriesError(f"{kind} time t={_plain(t[row])} (t must increase)", path=name,
                           where=f"row {row + 2}")
     out["frame"] = out["frame"].astype(int)
     out["ok"] = out["ok"].astype(int)
@@ -151,7 +160,7 @@ def read_series(path) -> Series:
     if side.exists():
         try:
             meta = json.loads(side.read_text())
-        except (OSError, json.JSONDecodeError) as exc:
+        except (OSError, ValueError) as exc:  # ValueError: bad JSON or not UTF-8
             raise SeriesError(f"cannot read sidecar ({exc})", path=side) from None
         if not isinstance(meta, dict):
             raise SeriesError("sidecar must be a JSON object", path=side)

@@ -381,7 +381,6 @@ def test_csv_missing_column(cli, hdir, drop):
     cli.fails("fit", p, "-o", out, output=out, names=[p, drop])
 
 
-@pytest.mark.xfail(strict=False, reason="finding 8: np.float64 repr in series.py")
 @pytest.mark.parametrize("seed", range(3))
 @pytest.mark.parametrize("kind", ["duplicate", "decreasing", "text", "empty_t", "nan_t",
                                   "bad_ok"])
