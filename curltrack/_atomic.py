@@ -8,6 +8,23 @@ import os
 import tempfile
 from pathlib import Path
 
+from .errors import CurltrackError
+
+
+def check_writable(path) -> None:
+    """Raise :class:`CurltrackError` naming ``path`` when it cannot be an output file.
+
+    Only what can be told before writing: ``path`` is an existing directory.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise CurltrackError("is a directory", path=path)
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise CurltrackError(f"{parent} is not a directory", path=path)
+            break
+
 
 @contextlib.contextmanager
 def atomic_path(path, suffix: str | None = None):
@@ -15,16 +32,28 @@ def atomic_path(path, suffix: str | None = None):
 
     The temporary file keeps ``path``'s suffix (or ``suffix``) so that writers that
     choose a format by extension (OpenCV, matplotlib, pyarrow) still work.
+
+    Raises
+    ------
+    CurltrackError
+        Naming ``path``: it is a directory, or its folder cannot be made or written to.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix or path.suffix,
-                               dir=path.parent)
+    check_writable(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix or path.suffix,
+                                   dir=path.parent)
+    except OSError as exc:
+        raise CurltrackError(f"cannot write here ({exc.strerror})", path=path) from None
     os.close(fd)
     try:
         yield Path(tmp)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual mode
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:  # e.g. a directory made under the name while we wrote
+            raise CurltrackError(f"cannot write ({exc.strerror})", path=path) from None
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import functools
+import os
 import sys
+from pathlib import Path
 
 import typer
 
@@ -27,6 +29,52 @@ def fail(message: str, code: int = 1):
     """Print one line to stderr and exit."""
     typer.echo(f"curltrack: error: {message}", err=True)
     raise typer.Exit(code)
+
+
+def check_outputs(inputs, outputs) -> None:
+    """Refuse, before any work, outputs that would destroy an input or each other.
+
+    Parameters
+    ----------
+    inputs : iterable of path or None
+        Files the command reads (include sidecars: a SHOT.csv's SHOT.json is an input).
+    outputs : iterable of (option, path or None)
+        Files the command writes, each with the option that named it (``"-o"``,
+        ``"--overlay"``); derived files (a sidecar) carry their option too.
+
+    Raises
+    ------
+    CurltrackError
+        ``OUT: OPTION: would overwrite the input FILE``, ``OUT: is a directory``, or
+        ``OUT: OPTION: the same file as OTHER``.
+    """
+    from .._atomic import check_writable
+
+    ins = [Path(p) for p in inputs if p is not None]
+    seen: list[tuple[str, Path]] = []
+    for option, out in outputs:
+        if out is None:
+            continue
+        out = Path(out)
+        for inp in ins:
+            if _same_file(out, inp):
+                raise CurltrackError(f"would overwrite the input {inp}", path=out, where=option)
+        check_writable(out)
+        for other_option, other in seen:
+            if _same_file(out, other):
+                raise CurltrackError(f"the same file as {other_option} {other}", path=out,
+                                     where=option)
+        seen.append((option, out))
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Same file: one inode (hard or symbolic links) or the same resolved path."""
+    try:
+        if os.path.samefile(a, b):
+            return True
+    except OSError:  # one does not exist (yet)
+        pass
+    return a.resolve() == b.resolve()
 
 
 def guarded(func):
@@ -54,8 +102,6 @@ def guarded(func):
 
 
 def _debug() -> bool:
-    import os
-
     return os.environ.get("CURLTRACK_DEBUG", "") not in ("", "0")
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import app, fail, guarded
+from ._app import app, check_outputs, fail, guarded
 
 
 @app.command()
@@ -46,6 +46,9 @@ def batch(
     """
     from ..batch import BatchOptions, run_batch
 
+    # before any work: -o naming a file, or outputs over the rig / shots.csv
+    check_outputs([rig, directory / "shots.csv"],
+                  [("-o", output / name) for name in ("campaign.parquet", "campaign.csv")])
     options = BatchOptions(fixed_stop=fixed_stop, discover=discover, split=split,
                            retry_failed=retry_failed, plots=plots)
     summary = run_batch(directory, rig, output, workers=workers, scheduler=scheduler,

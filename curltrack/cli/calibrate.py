@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import app, guarded
+from ._app import app, check_outputs, guarded
 
 
 @app.command()
@@ -33,6 +33,7 @@ def calibrate(
     from ..rig import load_rig
     from ..video import read_frame
 
+    check_outputs([source, rig], [("-o", output), ("--overlay", overlay)])
     r = load_rig(rig)
     image = read_frame(source, frame)
     try:

@@ -8,7 +8,7 @@ from typing import List, Optional
 
 import typer
 
-from ._app import app, guarded
+from ._app import app, check_outputs, guarded
 
 
 class Baseline(str, Enum):
@@ -32,7 +32,10 @@ def discover(
     model and its gain (delta-BIC, held-out error, residual tests)."""
     from ..discover import discover as run, write_report
     from ..rig import load_rig
+    from ..series import sidecar_path
 
+    check_outputs([*shots, *(sidecar_path(p) for p in shots), rig],
+                  [("-o", output), ("--plot", plot)])
     report = run([str(p) for p in shots], baseline=baseline.value, seed=seed,
                  rig=load_rig(rig) if rig is not None else None)
     write_report(report, output, plot)

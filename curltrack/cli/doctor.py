@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import app, guarded
+from ._app import app, check_outputs, guarded
 
 
 @app.command()
@@ -32,6 +32,7 @@ def doctor(
     from ..doctor import diagnose
     from ..rig import load_rig
 
+    check_outputs([video, rig], [("-o", output)])
     report = diagnose(video, load_rig(rig), n_samples=samples)
     data = report.to_dict()
     if output is not None:

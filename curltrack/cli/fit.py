@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import app, guarded
+from ._app import app, check_outputs, guarded
 
 
 @app.command()
@@ -30,8 +30,9 @@ def fit(
     from .._atomic import write_json
     from ..fit import fit_series
     from ..rig import load_rig
-    from ..series import read_series
+    from ..series import read_series, sidecar_path
 
+    check_outputs([series, sidecar_path(series), rig], [("-o", output), ("--plot", plot)])
     s = read_series(series)
     result = fit_series(s, load_rig(rig) if rig else None, fixed_stop=fixed_stop)
     write_json(output, result.to_dict())

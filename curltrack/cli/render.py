@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from ._app import app, fail, guarded
+from ._app import app, check_outputs, fail, guarded
 
 _HELP = """Render a synthetic overhead video of a shot (mp4, mp4v codec) with its ground truth.
 
@@ -79,6 +79,15 @@ def render(
         fail(f"{output}: the video must be an .mp4 file", code=2)
     if (series_path is None) == (v0 is None and omega0 is None):
         fail("give either a series (SIM.csv) or --v0 and --omega0", code=2)
+    from ..series import sidecar_path
+
+    truth_path = truth or output.with_suffix(".truth.csv")
+    stem = output.with_suffix("")
+    check_outputs([series_path, series_path and sidecar_path(series_path), rig],
+                  [("-o", output), ("--truth", truth_path),
+                   ("--truth (its sidecar)", sidecar_path(truth_path)),
+                   ("-o (the rig beside it)", f"{stem}.rig.toml"),
+                   ("-o (the settings beside it)", f"{stem}.render.json")])
     the_rig = load_rig(rig) if rig else default_rig()
     if series_path is not None:
         from ..series import read_series
@@ -101,12 +110,10 @@ def render(
                        blur_subframes=blur_subframes, shutter=shutter, read_noise=noise,
                        jpeg_quality=jpeg_quality or None, occlusion=occlusion,
                        occlusion_t_s=occlusion_t_s, stopped_tail_s=stopped_tail_s, ice=ice)
-    truth_path = truth or output.with_suffix(".truth.csv")
     result = render_video(series, the_rig, output, truth_path, config=cfg, seed=seed,
                           progress=not quiet)
     m = result.meta
     for w in m.get("warnings", []):
         typer.echo(f"warning: {w}", err=True)
-    stem = output.with_suffix("")
     typer.echo(f"wrote {output} ({m['n_frames']} frames at {m['fps']:g} fps), {truth_path}, "
                f"{stem}.rig.toml, {stem}.render.json")

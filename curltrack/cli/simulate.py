@@ -7,7 +7,7 @@ from typing import List, Optional
 
 import typer
 
-from ._app import app, fail, guarded
+from ._app import app, check_outputs, fail, guarded
 
 _HELP = """Simulate a shot and write it as a SHOT.csv-format series (and sidecar SIM.json).
 
@@ -100,9 +100,10 @@ def simulate(
 ):
     from ..errors import ParameterError
     from ..rig import default_rig, load_rig
-    from ..series import write_series
+    from ..series import sidecar_path, write_series
     from ..simulate import simulate_series
 
+    check_outputs([rig], [("-o", output), ("-o (its sidecar)", sidecar_path(output))])
     if model not in ("paper", "segment"):
         _usage(f"expected paper or segment, got {model!r}", param_hint="--model")
     if friction_direction not in ("ice", "film"):

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import app, guarded
+from ._app import app, check_outputs, guarded
 
 
 @app.command()
@@ -28,6 +28,7 @@ def split(
     from ..batch.split import split_video, write_segments
     from ..rig import load_rig
 
+    check_outputs([video, rig], [("-o", output)])
     shots = split_video(video, load_rig(rig))
     if output:
         write_segments(output, shots, video=video)

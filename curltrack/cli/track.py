@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import app, guarded
+from ._app import app, check_outputs, guarded
 
 
 def parse_frame_list(text: str | None) -> list[int]:
@@ -65,9 +65,11 @@ def track(
     import sys
 
     from ..rig import load_rig
-    from ..series import write_series
+    from ..series import sidecar_path, write_series
     from ..track import track_video
 
+    check_outputs([video, rig], [("-o", output), ("-o (its sidecar)", sidecar_path(output)),
+                                 ("--overlay", overlay)])
     r = load_rig(rig)
     excl = parse_frame_list(exclude_frames)
     series = track_video(video, r, start_frame=start_frame, end_frame=end_frame,

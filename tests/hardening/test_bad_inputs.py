@@ -520,7 +520,6 @@ def test_calibrate_bad_inputs(cli, hdir, rig_file, good_clip):
 # outputs that would destroy an input
 
 
-@pytest.mark.xfail(strict=False, reason="findings 19/20: outputs over inputs (cli, _atomic)")
 def test_output_over_an_input_is_refused(cli, hdir, rig_file, good_clip):
     import shutil
 
@@ -545,7 +544,6 @@ def test_output_over_an_input_is_refused(cli, hdir, rig_file, good_clip):
     cli.fails("calibrate", video, "--rig", rig_file, "-o", rig_file, names=[rig_file, "-o"])
 
 
-@pytest.mark.xfail(strict=False, reason="finding 19: -o is a directory (_atomic)")
 def test_output_that_is_a_directory(cli, hdir, rig_file, good_clip):
     d = hdir / "an_output_dir"
     d.mkdir(exist_ok=True)
