@@ -78,7 +78,9 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     f_px = np.nan
     nadir = np.full((n, 2), np.nan)
     if np.isfinite(est.height_m):
-        fs = np.array([focal_for_height(records[i].H, est.height_m, pp) for i in idx])
+        # (the focal is one number: its median over <= 60 frames spread over the shot)
+        fs = np.array([focal_for_height(records[i].H, est.height_m, pp)
+                       for i in idx[::max(1, len(idx) // 60)]])
         f_px = float(np.nanmedian(fs)) if np.isfinite(fs).any() else np.nan
         if np.isfinite(f_px):
             for i in idx:
