@@ -13,10 +13,12 @@ cheaper than decoding.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ._stats import median
-from .lens import apply_h, distort
+from .lens import apply_h, distort, undistort
 
 
 BOX = 0.25
@@ -29,6 +31,19 @@ def _box(a, k):
     lo = np.clip(np.arange(n) - k // 2, 0, n)
     hi = np.clip(np.arange(n) + (k - k // 2), 0, n)
     return (c[:, hi] - c[:, lo]) / (hi - lo)
+
+
+@functools.lru_cache(maxsize=8)
+def _frame_edge(w, h, K_flat, dist):
+    """Points along the frame's border, undistorted and normalised (the same every
+    frame of a video, hence cached)."""
+    K = np.reshape(K_flat, (3, 3))
+    corners = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], float)
+    edge = np.concatenate([np.linspace(corners[i], corners[(i + 1) % 4], 16)
+                           for i in range(4)])
+    q = (undistort(edge, K, dist) - K[:2, 2]) / K[0, 0]
+    q.setflags(write=False)
+    return q
 
 
 def _lattice_to_px(Hc_inv, K, dist, ab):
@@ -80,12 +95,7 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     h, w = image_bgr.shape[:2]
     f = K[0, 0]
     Hc_inv = np.linalg.inv(Hc)
-    corners = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], float)
-    edge = np.concatenate([np.linspace(corners[i], corners[(i + 1) % 4], 16)
-                           for i in range(4)])
-    from .lens import undistort
-
-    ab_edge = apply_h(Hc, (undistort(edge, K, dist) - K[:2, 2]) / f)
+    ab_edge = apply_h(Hc, _frame_edge(w, h, tuple(K.ravel()), tuple(dist)))
     if not np.all(np.isfinite(ab_edge)):
         return None  # a degenerate prediction (the view folds over): nothing to sample
     lo, hi = ab_edge.min(axis=0), ab_edge.max(axis=0)
@@ -207,7 +217,9 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     keep = above & (run == run[np.arange(len(kpk)), kpk][:, None])
     # noise of the detection signal away from the run found (and from the window ends,
     # which define the baseline)
-    away = _box(keep.astype(np.float32), max(3, min(9, n_s // 4))) == 0
+    kw = max(3, min(9, n_s // 4))
+    away = cv2.boxFilter(keep.astype(np.float32), -1, (kw, 1), normalize=False,
+                         borderType=cv2.BORDER_CONSTANT) == 0
     away[:, :2] = away[:, -2:] = False
     # (windows too short to see background beside the thread: no noise criterion; the
     # relative one below still drops occluded and empty stretches)

@@ -399,9 +399,10 @@ class MarkerDetector:
         r2 = ((xx - cx) ** 2 + (yy - cy) ** 2)[inside].sum()
         sigma = float(sigma_w * np.sqrt(r2 / 2.0) / sw)
         obs_lab = lab_of_rgb(np.clip(col, 0, 255))
-        if check_class and not self._is_class(obs_lab, lab_of_rgb(np.clip(bg, 0, 255)), i):
+        bg_lab = lab_of_rgb(np.clip(bg, 0, 255))
+        if check_class and not self._is_class(obs_lab, bg_lab, i):
             return None
         # Adapt the colour model to what the camera shows (slowly, and only when sure).
         self.colors_lab[i] = (1 - _ADAPT) * self.colors_lab[i] + _ADAPT * obs_lab
-        contrast = float(np.linalg.norm(_weigh(obs_lab) - _weigh(lab_of_rgb(np.clip(bg, 0, 255)))))
+        contrast = float(np.linalg.norm(_weigh(obs_lab) - _weigh(bg_lab)))
         return np.array([cx, cy]), sigma, float(sw), contrast

@@ -36,7 +36,7 @@ def setup(tmp_path_factory):
 def test_calibrate_writes_json_and_png(setup, source):
     d, frame, video, rig, cam = setup
     src = frame if source == "frame" else video
-    out, png = d / f"{source}.json", d / f"{source}.png"
+    out, png = d / f"{source}.json", d / f"{source}_overlay.png"
     args = ["calibrate", str(src), "--rig", str(rig), "-o", str(out), "--overlay", str(png)]
     if source == "video":
         args += ["--frame", "2"]
