@@ -123,6 +123,54 @@ def track_peak_rss(video: Path, rig: Path, out_csv: Path, every_s: float = 0.5) 
             "rss_early_mb": median_in(0.25, 0.35), "rss_late_mb": median_in(0.85, 0.95)}
 
 
+def memory_vs_length(minutes=(0.5, 2.0), size=(1920, 1080), fps: float = 30.0,
+                     workdir: Path | None = None, max_growth_mb_per_min: float = 8.0,
+                     log=print) -> dict:
+    """Peak RSS of ``curltrack track`` for each video length in ``minutes``.
+
+    Returns
+    -------
+    dict
+        ``runs`` (per length: ``minutes``, ``frames``, ``rows``, ``wall_s``,
+        ``fps_tracked``, ``peak_rss_mb``, ``rss_early_mb``, ``rss_late_mb``),
+        ``growth_mb_per_min`` (peak RSS, longest vs shortest) and ``ok`` (flat within
+        ``max_growth_mb_per_min`` and every frame kept as a row).
+    """
+    import pandas as pd
+
+    if len(minutes) < 2:
+        raise ValueError("give at least two lengths")
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(workdir) if workdir else Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        base, rig = render_base(work, size, fps)
+        log(f"rendered the base shot at {size[0]}x{size[1]} in "
+            f"{time.perf_counter() - t0:.1f} s", flush=True)
+        rows = []
+        for m in sorted(minutes):
+            n = int(round(m * 60 * fps))
+            video = make_long(base, work / f"long_{n}.mp4", n, fps)
+            r = track_peak_rss(video, rig, work / f"long_{n}.csv")
+            n_rows = len(pd.read_csv(work / f"long_{n}.csv"))
+            r.update(minutes=m, frames=n, rows=n_rows, fps_tracked=n / r["wall_s"])
+            rows.append(r)
+            early, late = r["rss_early_mb"], r["rss_late_mb"]
+            drift = (f"  RSS {early:.0f} MB at 30 % -> {late:.0f} MB at 90 % of the run"
+                     if early is not None and late is not None else "")
+            log(f"{m:6.2f} min  {n:6d} frames  {r['wall_s']:7.1f} s wall  "
+                f"{r['fps_tracked']:6.1f} frames/s  peak RSS {r['peak_rss_mb']:7.1f} MB"
+                + drift, flush=True)
+            video.unlink()
+    a, b = rows[0], rows[-1]
+    growth = (b["peak_rss_mb"] - a["peak_rss_mb"]) / max(b["minutes"] - a["minutes"], 1e-9)
+    ok = growth <= max_growth_mb_per_min and all(r["rows"] == r["frames"] for r in rows)
+    log(f"peak RSS growth: {growth:+.1f} MB per extra minute of video "
+        f"({'flat' if ok else 'GROWS'}; limit {max_growth_mb_per_min:g} MB/min)")
+    return {"size": list(size), "fps": fps, "runs": rows, "growth_mb_per_min": growth,
+            "limit_mb_per_min": max_growth_mb_per_min, "ok": ok}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--minutes", type=float, nargs="+", default=[0.5, 2.0],
@@ -137,39 +185,11 @@ def main(argv=None) -> int:
     if len(args.minutes) < 2:
         ap.error("give at least two lengths")
     size = tuple(int(v) for v in args.size.lower().split("x"))
-    with tempfile.TemporaryDirectory() as tmp:
-        work = args.workdir or Path(tmp)
-        work.mkdir(parents=True, exist_ok=True)
-        t0 = time.perf_counter()
-        base, rig = render_base(work, size, args.fps)
-        print(f"rendered the base shot at {size[0]}x{size[1]} in "
-              f"{time.perf_counter() - t0:.1f} s", flush=True)
-        rows = []
-        for minutes in sorted(args.minutes):
-            n = int(round(minutes * 60 * args.fps))
-            video = make_long(base, work / f"long_{n}.mp4", n, args.fps)
-            r = track_peak_rss(video, rig, work / f"long_{n}.csv")
-            import pandas as pd
-
-            n_rows = len(pd.read_csv(work / f"long_{n}.csv"))
-            r.update(minutes=minutes, frames=n, rows=n_rows, fps_tracked=n / r["wall_s"])
-            rows.append(r)
-            early, late = r["rss_early_mb"], r["rss_late_mb"]
-            drift = (f"  RSS {early:.0f} MB at 30 % -> {late:.0f} MB at 90 % of the run"
-                     if early is not None and late is not None else "")
-            print(f"{minutes:6.2f} min  {n:6d} frames  {r['wall_s']:7.1f} s wall  "
-                  f"{r['fps_tracked']:6.1f} frames/s  peak RSS {r['peak_rss_mb']:7.1f} MB"
-                  + drift, flush=True)
-            video.unlink()
-    a, b = rows[0], rows[-1]
-    growth = (b["peak_rss_mb"] - a["peak_rss_mb"]) / max(b["minutes"] - a["minutes"], 1e-9)
-    ok = growth <= args.max_growth_mb_per_min and all(r["rows"] == r["frames"] for r in rows)
-    print(f"peak RSS growth: {growth:+.1f} MB per extra minute of video "
-          f"({'flat' if ok else 'GROWS'}; limit {args.max_growth_mb_per_min:g} MB/min)")
+    res = memory_vs_length(args.minutes, size, args.fps, args.workdir,
+                           args.max_growth_mb_per_min)
     if args.json:
-        args.json.write_text(json.dumps({"size": list(size), "fps": args.fps, "runs": rows,
-                                         "growth_mb_per_min": growth, "ok": ok}, indent=2))
-    return 0 if ok else 1
+        args.json.write_text(json.dumps(res, indent=2))
+    return 0 if res["ok"] else 1
 
 
 if __name__ == "__main__":
