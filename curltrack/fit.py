@@ -31,11 +31,13 @@ Shot type (documented rule, in this order):
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field
 
 import lmfit
 import numpy as np
 import pandas as pd
+from uncertainties import UFloat
 
 from . import __version__
 from .errors import FitError
@@ -148,16 +150,23 @@ def _values(params: lmfit.Parameters) -> dict:
 
 def _minimize(resid, params, name, path):
     try:
-        res = lmfit.minimize(resid, params, method="leastsq", max_nfev=4000)
-    except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
-        raise FitError(f"{name} fit failed ({exc})", path=path) from None
+        with np.errstate(all="ignore"):  # trial steps may overflow; judged by the result
+            res = lmfit.minimize(resid, params, method="leastsq", max_nfev=4000)
+    except ValueError as exc:
+        if "NaN" in str(exc):  # lmfit's long FAQ message: the model left its domain
+            raise FitError(f"{name} fit: the fitted parameters are outside the model's range "
+                           "(the model gave NaN)", path=path) from None
+        raise FitError(f"{name} fit failed ({exc})".splitlines()[0], path=path) from None
+    except (FloatingPointError, np.linalg.LinAlgError) as exc:
+        raise FitError(f"{name} fit failed ({exc})".splitlines()[0], path=path) from None
     if not res.success:
         raise FitError(f"{name} fit did not converge ({res.message})", path=path)
     if not res.errorbars or res.covar is None:
         # MINPACK can stop at an exact optimum without a covariance (noise-free data);
         # a trust-region pass from there computes it from the Jacobian's SVD.
         try:
-            res = lmfit.minimize(resid, res.params, method="least_squares")
+            with np.errstate(all="ignore"):
+                res = lmfit.minimize(resid, res.params, method="least_squares")
         except (ValueError, FloatingPointError, np.linalg.LinAlgError):
             pass
     if not res.errorbars or res.covar is None:
@@ -230,6 +239,10 @@ def _window(t, t_stop, fixed_stop, name, coord, path, warnings):
         use = t >= 0
         return use, 1.3 * t_last, (t_last, 20.0 * t_last + 1.0)
     t_stop = float(t_stop)
+    if t_stop <= float(t[0]):
+        raise FitError(f"{coord} fit: the stop time (t = {t_stop:g} s) is at the start of "
+                       "the series although the rock moves; the series does not look like "
+                       "a shot", path=path)
     if fixed_stop:
         return (t >= 0) & (t <= t_stop), t_stop, None
     use = (t >= 0) & (t <= t_stop + STOP_MARGIN_S)
@@ -327,10 +340,12 @@ def _nominal(u):
 
 
 def _stderr(u):
+    """1σ of an ``uncertainties`` value; None for a plain number or when it overflows."""
     if u is None:
         return None
-    s = getattr(u, "std_dev", None)
-    return None if s is None else float(s)
+    with np.errstate(over="ignore", invalid="ignore"):
+        s = getattr(u, "std_dev", None)
+    return None if s is None or not math.isfinite(s) else float(s)
 
 
 def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False) -> FitResult:
@@ -373,8 +388,16 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
     fits: dict = {}
     u: dict = {}
 
+    # turn and travel from the first measured row: a constant offset in theta is no spin
+    spin = float(np.nanmax(np.abs(th - th[0])))
+    travel = float(np.nanmax(np.hypot(x - x[0], y - y[0])))
+    if spin < MIN_ROTATION_RAD and travel < PURE_ROTATION_MAX_TRAVEL_M:
+        raise FitError(f"nothing to fit: the rock does not move (travel {travel:.3g} m < "
+                       f"{PURE_ROTATION_MAX_TRAVEL_M:g} m, turn {spin:.3g} rad < "
+                       f"{MIN_ROTATION_RAD:g} rad)", path=path)
+    derive = _Deriver(u, warnings, path)
+
     # --- rotation
-    spin = float(np.nanmax(np.abs(th)))
     if spin >= MIN_ROTATION_RAD:
         s_th = _weights(d, "sigma_theta", t, [th], t_rot)
         res = fit_rotation(t, th, t_rot, fixed_stop, s_th, path, warnings)
@@ -383,19 +406,15 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
         uv = res.uvars
         u["theta_F"], u["lambda_theta"] = uv["theta_F"], uv["lambda_theta"]
         u["t_Ftheta"] = uv["t_Ftheta"] if "t_Ftheta" in uv else res.params["t_Ftheta"].value
-        u["omega0"] = cf.initial_rate(u["theta_F"], u["lambda_theta"], u["t_Ftheta"])
-        u["phi_theta"] = cf.phi_from_lambda(u["lambda_theta"])
+        derive("omega0", cf.initial_rate, "theta_F", "lambda_theta", "t_Ftheta")
         spin_sign = math.copysign(1.0, res.params["theta_F"].value)
-        u["alpha_theta"] = cf.alpha_rotation(spin_sign * u["omega0"], u["phi_theta"],
-                                             u["t_Ftheta"], R, r)
-        u["n_turns"] = spin_sign * u["theta_F"] / (2 * math.pi)
+        derive("n_turns", lambda q: spin_sign * q / (2 * math.pi), "theta_F")
         vals["rms_theta"] = _rms(res.residual * s_th)
     else:
         warnings.append(f"{path}: the rock turns less than {MIN_ROTATION_RAD} rad; "
                         "rotation not fitted")
 
     # --- translation
-    travel = float(np.nanmax(np.hypot(x - x[0], y - y[0])))
     if travel >= PURE_ROTATION_MAX_TRAVEL_M:
         s_xy = _weights(d, "sigma_xy", t, [x, y], t_tr)
         tied = fit_translation(t, x, y, t_tr, fixed_stop, False, s_xy, path, warnings)
@@ -407,13 +426,18 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
         u["y_F"], u["lambda_y"], u["a_T"] = uv["y_F"], uv["lambda_y"], uv["a_T"]
         u["t_FS"] = uv["t_FS"] if "t_FS" in uv else tied.params["t_FS"].value
         u["skew_deg"] = -uv["psi"] * 180.0 / math.pi
-        u["v0"] = cf.initial_rate(u["y_F"], u["lambda_y"], u["t_FS"])
-        u["phi_y"] = cf.phi_from_lambda(u["lambda_y"])
-        u["alpha_y"] = cf.alpha_translation(u["v0"], u["phi_y"], u["t_FS"])
-        u["x_F"] = cf.curl_distance(u["a_T"], u["lambda_y"], u["t_FS"])
+        derive("v0", cf.initial_rate, "y_F", "lambda_y", "t_FS")
+        if u["v0"] is not None and _nominal(u["v0"]) <= 0:
+            raise FitError(f"the fitted parameters are outside the model's range: v0 = "
+                           f"{_nominal(u['v0']):.3g} m/s, the rock would move against +y, the "
+                           "series' direction of travel", path=path)
+        derive("phi_y", cf.phi_from_lambda, "lambda_y")
+        derive("alpha_y", cf.alpha_translation, "v0", "phi_y", "t_FS")
+        derive("x_F", cf.curl_distance, "a_T", "lambda_y", "t_FS")
         u["a_T_free"], u["lambda_x"] = uf["a_T"], uf["lambda_x"]
         tfs_free = uf["t_FS"] if "t_FS" in uf else free.params["t_FS"].value
-        u["x_F_free"] = cf.curl_distance(u["a_T_free"], u["lambda_x"], tfs_free)
+        derive("x_F_free", lambda a, lam: cf.curl_distance(a, lam, tfs_free), "a_T_free",
+               "lambda_x")
         n = len(t)
         vals["rms_x"] = _rms(tied.residual[:n] * s_xy)
         vals["rms_y"] = _rms(tied.residual[n:] * s_xy)
@@ -423,11 +447,14 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
     vals["shot_type"] = shot
     if "lambda_theta" in u and "lambda_y" in u:
         if shot == "draw":
-            u["C_omega"] = cf.c_omega(u["lambda_theta"], u["lambda_y"], R, r)
+            derive("C_omega", lambda lt, ly: cf.c_omega(lt, ly, R, r), "lambda_theta", "lambda_y")
         elif shot == "rrss":
-            u["C_y"] = cf.c_y(u["lambda_theta"], u["lambda_y"], R, r)
-    if shot == "draw":  # the paper derives phi, alpha from rotation only without translation
-        u.pop("phi_theta", None), u.pop("alpha_theta", None)
+            derive("C_y", lambda lt, ly: cf.c_y(lt, ly, R, r), "lambda_theta", "lambda_y")
+    if "lambda_theta" in u and shot != "draw":
+        # the paper derives phi, alpha from rotation only when translation does not dominate
+        derive("phi_theta", cf.phi_from_lambda, "lambda_theta")
+        derive("alpha_theta", lambda w, phi, tf: cf.alpha_rotation(spin_sign * w, phi, tf, R, r),
+               "omega0", "phi_theta", "t_Ftheta")
     for k, v in u.items():
         vals[k] = _nominal(v)
         errs[k] = _stderr(v)
@@ -438,7 +465,52 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
         "chisqr_reduced_theta": fits["theta"].redchi if "theta" in fits else None,
         "chisqr_reduced_xy": fits["xy"].redchi if "xy" in fits else None,
     }
-    return FitResult(vals, errs, warnings, fits, extra)
+    return FitResult(vals, errs, list(dict.fromkeys(warnings)), fits, extra)
+
+
+class _Deriver:
+    """Derive ``u[key] = func(u[a], u[b], ...)`` where the fitted values allow it.
+
+    A fit that converged may still sit where a derived quantity has no finite real value:
+    alpha when lambda is at its lower bound (constant speed, then an abrupt stop), so
+    phi -> -inf and v0^(1-phi) over- or underflows.  Then the quantity is reported as null (None)
+    with a warning naming it and its inputs, rather than as an internal error or a NaN.
+    """
+
+    def __init__(self, u: dict, warnings: list, path):
+        self.u, self.warnings, self.path = u, warnings, path
+
+    def __call__(self, key, func, *names):
+        args = [self.u.get(n) for n in names]
+        missing = [n for n, a in zip(names, args) if a is None]
+        if missing:
+            return self._null(key, f"needs {', '.join(missing)}, which could not be derived")
+        try:
+            with np.errstate(all="raise"):
+                value = func(*args)
+        except OverflowError:
+            return self._null(key, f"too large to represent ({self._inputs(names, args)})")
+        except (ValueError, ZeroDivisionError, FloatingPointError):
+            return self._null(key, f"no finite real value ({self._inputs(names, args)})")
+        nominal = _nominal(value)
+        if not math.isfinite(nominal):
+            return self._null(key, f"no finite real value ({self._inputs(names, args)})")
+        if abs(nominal) < sys.float_info.min:  # underflow: none of these is 0 analytically
+            return self._null(key, f"too small to represent ({self._inputs(names, args)})")
+        if isinstance(value, UFloat) and _stderr(value) is None:
+            self.warnings.append(f"{self.path}: the uncertainty of {key} could not be "
+                                 f"propagated ({self._inputs(names, args)}); reported as null")
+        self.u[key] = value
+        return value
+
+    def _null(self, key, reason):
+        self.u[key] = None
+        self.warnings.append(f"{self.path}: {key} cannot be derived from the fitted "
+                             f"parameters: {reason}; reported as null")
+
+    @staticmethod
+    def _inputs(names, args) -> str:
+        return ", ".join(f"{n} = {_nominal(a):.4g}" for n, a in zip(names, args))
 
 
 def _rms(res) -> float:
