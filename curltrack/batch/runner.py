@@ -206,7 +206,10 @@ def _run(client, jobs: list[ShotJob], rig: Rig, outdir: Path, options: BatchOpti
         pending[fut] = ("split", job)
         return fut
 
-    first = [(submit_split if options.split else submit_shot)(j) for j in jobs]
+    # Longest first (file size as the proxy for frames): the last shots to finish are
+    # short ones, so the workers run out of work at about the same time.
+    first = [(submit_split if options.split else submit_shot)(j)
+             for j in sorted(jobs, key=_video_bytes, reverse=True)]
     records: list[dict] = []
     bar = _Progress(len(jobs), enabled=progress)  # with split: grows as videos are split
     queue = as_completed(first)
@@ -233,6 +236,13 @@ def _run(client, jobs: list[ShotJob], rig: Rig, outdir: Path, options: BatchOpti
         client.cancel(list(pending))
         raise
     return records
+
+
+def _video_bytes(job: ShotJob) -> int:
+    try:
+        return os.path.getsize(job.video)
+    except OSError:
+        return 0
 
 
 def _crash_record(job: ShotJob, exc, message: str | None = None) -> dict:
