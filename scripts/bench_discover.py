@@ -7,6 +7,10 @@ run; a detection is a verdict naming the effect.  The smallest strength found 90
 the time is interpolated from the table.  Clean shots (baseline + noise) give the
 false-alarm rate (verdict != "none").  Everything is seeded.
 
+A verdict naming another effect counts as ``wrong`` (reported per row): near the
+threshold some effects look alike (a short weak patch and a pick in y), and the verdict
+must then be ``unexplained`` rather than a guess.
+
 Usage::
 
     python scripts/bench_discover.py [--trials 10] [--clean 40] [--effects pick,late_curl]
@@ -61,8 +65,10 @@ def detection_rate(effect: str, strength: float, trials: int = 10, seed0: int = 
     """Fraction of ``trials`` simulated cases whose verdict names ``effect``."""
     runs = [run_one(effect, strength, seed0 + i, n_shots) for i in range(trials)]
     hits = sum(r["verdict"] == effect for r in runs)
+    # a wrong name (another effect) is worse than 'unexplained' or 'none'
+    wrong = sum(r["verdict"] not in (effect, "none", "unexplained") for r in runs)
     return {"effect": effect, "strength": strength, "trials": trials, "rate": hits / trials,
-            "verdicts": [r["verdict"] for r in runs],
+            "wrong": wrong, "verdicts": [r["verdict"] for r in runs],
             "seconds_mean": float(np.mean([r["seconds"] for r in runs])),
             "cpu_seconds_mean": float(np.mean([r["cpu_seconds"] for r in runs])),
             "cpu_seconds_max": float(np.max([r["cpu_seconds"] for r in runs]))}
@@ -88,7 +94,7 @@ def detection_table(effects=None, trials: int = 10, seed0: int = 1000, log=print
         for s in GRIDS[eff]:
             row = detection_rate(eff, s, trials, seed0)
             rows.append(row)
-            log(f"{eff:28s} strength {s:<8g} rate {row['rate']:.2f}  "
+            log(f"{eff:28s} strength {s:<8g} rate {row['rate']:.2f} wrong {row['wrong']}  "
                 f"(cpu {row['cpu_seconds_mean']:.1f} s/case mean, "
                 f"{row['cpu_seconds_max']:.1f} max)  {row['verdicts']}", flush=True)
             if row["rate"] == 1.0 and len(rows) >= 2 and rows[-2]["rate"] == 1.0:

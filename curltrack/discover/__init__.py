@@ -18,8 +18,10 @@ A candidate is *supported* when its delta-BIC exceeds both 0 and its bootstrap t
 (false-alarm level :data:`scoring.CANDIDATE_LEVEL` each) and it predicts held-out data
 better than the baseline.  The verdict names the supported candidate with the largest
 delta-BIC if its residuals then look like noise (no structure test significant at the
-family-wise level :data:`residuals.STRUCTURE_LEVEL`); otherwise ``unexplained``.  With no
-supported candidate: ``unexplained`` if the baseline residuals are structured, else
+family-wise level :data:`residuals.STRUCTURE_LEVEL`) and no other candidate comes within
+:data:`report.AMBIGUITY_MARGIN` of its delta-BIC; otherwise ``unexplained`` (with the
+rivals under ``unexplained.ambiguous`` when the evidence cannot tell them apart).  With
+no supported candidate: ``unexplained`` if the baseline residuals are structured, else
 ``none``.
 """
 

@@ -9,6 +9,14 @@ from .residuals import binned_means
 from .scoring import bic
 from .shots import COORDS
 
+#: a candidate is named only if its delta-BIC beats every other candidate's by at least
+#: this much.  Delta-BIC differences are on the 2 ln(Bayes factor) scale: below 6 the
+#: evidence for one over the other is at most "positive", not "strong" (odds < 20:1,
+#: Kass & Raftery 1995).  Near the detection threshold a weak patch and a pick in y, or
+#: a weak pick and late curl, fit equally well; a wrong name is worse than saying so,
+#: so the verdict is then ``unexplained`` with the rivals listed (``ambiguous``).
+AMBIGUITY_MARGIN = 6.0
+
 
 def _rms_by_coord(model, r_raw) -> dict:
     out = {}
@@ -53,6 +61,17 @@ def _evidence(sc, h0) -> str:
             f"Bonferroni p = {after.p_min_adjusted:.2g}")
 
 
+def rivals(best, scores, margin: float = AMBIGUITY_MARGIN) -> list:
+    """Names of the other candidates whose delta-BIC comes within ``margin`` of ``best``'s.
+
+    Supported or not: a rival's own look-elsewhere threshold speaks of chance under the
+    baseline, not of how well it competes with ``best`` on these data.  A rival known only
+    linearly (far below its threshold, never refitted) is compared by that delta-BIC.
+    """
+    return sorted(o.name for o in scores if o is not best and np.isfinite(o.delta_bic)
+                  and o.delta_bic > best.delta_bic - margin)
+
+
 def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
     """Assemble REPORT.json and decide the verdict (rule in :mod:`curltrack.discover`)."""
     n = fit0.n
@@ -91,12 +110,18 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
             supported.append((sc, f))
     verdict, unexplained = "none", None
     best_fit, best_model_name, best_params = fit0, None, {}
+    ambiguous = []
     if supported:
         sc, f = max(supported, key=lambda p: p[0].delta_bic)
         best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
+        ambiguous = rivals(sc, scores)
         if sc.structure_after.structured:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name)
+        elif ambiguous:
+            verdict = "unexplained"
+            unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
+                               ambiguous=[sc.name] + ambiguous)
         else:
             verdict = sc.name
     elif before.structured:
@@ -108,15 +133,22 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
         where_txt = (f"shot {w.get('shot')}, {w.get('coord')}, t = {w.get('t_from_s', 0):.1f}-"
                      f"{w.get('t_to_s', 0):.1f} s, y = {w.get('y_from_m', 0):.2f}-"
                      f"{w.get('y_to_m', 0):.2f} m") if w else "not localised"
+        if unexplained.get("ambiguous"):
+            alike = [next(o for o in scores if o.name == a) for a in unexplained["ambiguous"]]
+            evidence = ("the baseline's misfit is explained about equally well by " +
+                        " and ".join(f"{o.name} (delta-BIC {o.delta_bic:.1f})" for o in alike)
+                        + f": they differ by less than {AMBIGUITY_MARGIN:g} (2 ln Bayes "
+                          f"factor), too little to name one")
+        else:
+            evidence = (f"residuals of the {best_model_name or 'baseline'} model stay "
+                        f"structured (a free mean in 10 time bins per series gains "
+                        f"chi-square {gain:.1f} for {k} parameters); the largest misfit "
+                        f"sits at {where_txt}")
         findings.append({
             "effect": "unexplained", "delta_bic": float(gain - k * np.log(n)),
             "rms_before": rms0, "rms_after": _rms_by_coord(base, best_fit.r_raw),
             "heldout_rmse_before": h0["scalar"], "heldout_rmse_after": None,
-            "params": {}, "params_err": {}, "where": unexplained,
-            "evidence": (f"residuals of the {best_model_name or 'baseline'} model stay "
-                         f"structured (a free mean in 10 time bins per series gains "
-                         f"chi-square {gain:.1f} for {k} parameters); the largest misfit "
-                         f"sits at {where_txt}")})
+            "params": {}, "params_err": {}, "where": unexplained, "evidence": evidence})
     findings.sort(key=lambda f: -np.inf if f["delta_bic"] is None else -f["delta_bic"])
     report = {
         "baseline": {"model": base.baseline, "params": vals, "params_err": errs,
