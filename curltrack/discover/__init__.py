@@ -107,17 +107,27 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     # threshold.  (The linear gain is exact near the null, where thresholds live, but can
     # underestimate a strong effect several-fold, so it never ranks candidates.)
     by_name = {c.name: c for c in cands}
-    for sc in scores:
-        if sc._refine is None:
-            continue
-        if sc.delta_bic_linear < max(sc.threshold["threshold"], 0.0) - NONLINEAR_MARGIN:
-            continue
+
+    def refine(sc):
         refine_candidate(sc, base, fit0, name=names)
         if sc.fit is not None:
             fixed = [p.name for p in by_name[sc.name].location]
             sc.heldout = {"time": heldout(sc.fit, f_time, base, fixed)}
             if f_shot is not None:
                 sc.heldout["shot"] = heldout(sc.fit, f_shot, base, fixed)
+
+    for sc in scores:
+        if sc._refine is not None and \
+                sc.delta_bic_linear >= max(sc.threshold["threshold"], 0.0) - NONLINEAR_MARGIN:
+            refine(sc)
+    # once some candidate clears its threshold, every rival is fitted too: a name needs
+    # its delta-BIC ahead of the others' (report.rivals), and far from the null the
+    # linear gain can understate a rival several-fold (a weak patch next to a pick)
+    if any(sc.fit is not None and sc.delta_bic > max(sc.threshold["threshold"], 0.0)
+           for sc in scores):
+        for sc in scores:
+            if sc._refine is not None and sc.fit is None:
+                refine(sc)
 
     from .report import build_report
 

@@ -116,14 +116,24 @@ def test_close_rivals_make_the_evidence_ambiguous():
     from curltrack.discover.report import AMBIGUITY_MARGIN, rivals
     from curltrack.discover.search import CandidateScore
 
-    def sc(name, dbic):
-        return CandidateScore(name, dbic, dbic, {"threshold": 0.0}, None, {})
+    ln_n = np.log(2000)
 
-    patch, pick, late = sc("friction_patch", 1557.4), sc("pick", 1555.8), sc("late_curl", -7.0)
+    def sc(name, dbic, k, thr=0.0):
+        out = CandidateScore(name, dbic, dbic, {"threshold": thr}, None, {}, k=k)
+        out.chi2_gain = dbic + k * ln_n
+        return out
+
+    patch, pick, late = sc("friction_patch", 1557.4, 3), sc("pick", 1555.8, 2), sc("late_curl", -7.0, 1)
     assert rivals(patch, [patch, pick, late]) == ["pick"]
-    far = sc("pick", patch.delta_bic - AMBIGUITY_MARGIN - 0.1)
+    far = sc("pick", patch.delta_bic - AMBIGUITY_MARGIN - 0.1, 2)
     assert rivals(patch, [patch, far, late]) == []
-    assert rivals(patch, [patch, sc("pick", -np.inf)]) == []
+    assert rivals(patch, [patch, sc("pick", -np.inf, 2)]) == []
+    # the same fit with one parameter more: behind by ln n in delta-BIC, still a rival
+    # when it clears its own threshold, not when it does not
+    pick = sc("pick", 3.6, 2)
+    assert rivals(pick, [pick, sc("friction_patch", 3.6 - ln_n + 1.0, 3, thr=-11.0)]) == \
+        ["friction_patch"]
+    assert rivals(pick, [pick, sc("friction_patch", 3.6 - ln_n + 1.0, 3, thr=5.0)]) == []
 
 
 def _case_clean(seed):
