@@ -25,6 +25,7 @@ import numpy as np
 
 from .errors import CurltrackError, TrackingError
 from .rig import Rig
+from .track.results import TURN_WARN_DEG_PER_FRAME
 
 __all__ = ["Check", "DoctorReport", "diagnose"]
 
@@ -39,9 +40,9 @@ MIN_SPACING_PX = 8.0
 #: Camera heights a rig of this kind is mounted at (m).
 HEIGHT_RANGE_M = (0.8, 8.0)
 #: Camera turn between consecutive frames (deg/frame): above the first, positions lose
-#: accuracy (measured: ~5 mm RMS at 3 deg/frame against ~1 mm still); above the second
-#: the grid's cell index is lost (measured: from ~10 deg/frame).
-TURN_WARN_DEG, TURN_FAIL_DEG = 1.0, 8.0
+#: accuracy (the limit ``track`` warns at; measured there); above the second the grid's
+#: cell index is lost (measured: from ~10 deg/frame).
+TURN_WARN_DEG, TURN_FAIL_DEG = TURN_WARN_DEG_PER_FRAME, 8.0
 #: Sampled frames that are also checked against their next frame (camera turn rate).
 N_PAIRS = 3
 

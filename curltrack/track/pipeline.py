@@ -124,12 +124,17 @@ class _Follower:
 
 
 def _calibrate(image, rig, mask):
+    """(calibration, "") or (None, why the grid was not found, without "no grid found")."""
     from ..calib import calibrate_frame
 
     try:
         return calibrate_frame(image, rig, mask=mask), ""
     except TrackingError as exc:
-        return None, exc.message
+        msg = exc.message
+        head = "no grid found"
+        if msg.lower().startswith(head):  # our messages say it already
+            msg = msg[len(head):].lstrip(" :") or msg
+        return None, msg
 
 
 def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[FrameRecord], dict]:

@@ -19,6 +19,13 @@ __all__ = ["build_series", "frame_ranges"]
 #: Frames whose layout scale is this many robust sigmas off the video's are rejected.
 SCALE_OUTLIER_SIGMA = 6.0
 MIN_MEASURED = 8
+#: Camera turn (deg/frame, the grid's rotation in the image) above which SHOT.json warns.
+#: Measured on a 640x360 rendered draw turned steadily about the image centre: position
+#: RMS 1.5-1.9 mm (max 3.2) from 0 to 1.0 deg/frame, 2.5-3.3 mm (max 5-6) from 1.5 to
+#: 4.5 deg/frame; at 4.9 the grid was lost for 16 frames and re-found turned by 90 deg.
+#: Slow turns (12-20 deg/s at 30 fps = 0.4-0.67 deg/frame) are as accurate as a still
+#: camera and must not warn.  ``doctor`` uses the same limit.
+TURN_WARN_DEG_PER_FRAME = 1.0
 
 
 def frame_ranges(frames) -> str:
@@ -32,6 +39,52 @@ def frame_ranges(frames) -> str:
         out.append(str(frames[i]) if i == j else f"{frames[i]}-{frames[j]}")
         i = j + 1
     return ", ".join(out)
+
+
+def reason_groups(records) -> list[tuple[str, list[int], str]]:
+    """Lost frames grouped by kind of reason, most frequent first.
+
+    Returns ``(kind, frames, reason)`` where ``kind`` is the reason without its per-frame
+    detail ("grid: cell index ambiguous" for "grid: cell index ambiguous: the grid moved
+    0.42 cells ...") and ``reason`` the full reason when every frame of the group has the
+    same one, else ``kind``.
+    """
+    groups: dict[str, list] = {}
+    for r in records:
+        if r.status:
+            kind = ": ".join(r.status.split(" (")[0].split(": ")[:2])
+            g = groups.setdefault(kind, [[], set()])
+            g[0].append(r.frame)
+            g[1].add(r.status)
+    out = [(k, frs, next(iter(st)) if len(st) == 1 else k) for k, (frs, st) in groups.items()]
+    return sorted(out, key=lambda g: (-len(g[1]), g[1][0]))
+
+
+def camera_turn(records, pp) -> tuple[np.ndarray, np.ndarray]:
+    """Frame-to-frame turn of the grid in the image (deg/frame) between measured frames.
+
+    The angle is that of the image's +u direction at ``pp`` (px) in the lattice frame,
+    from each measured frame's homography, differenced modulo 90 deg (the lattice's
+    symmetry) and divided by the frame gap.  Returns (frame of the later record, rate).
+    """
+    from ..calib.lens import apply_h
+
+    frames, yaw = [], []
+    for r in records:
+        if r.status == "" and r.H is not None:
+            a, b = apply_h(r.H, np.vstack([pp, pp + (20.0, 0.0)]))
+            frames.append(r.frame)
+            yaw.append(np.degrees(np.arctan2(b[1] - a[1], b[0] - a[0])))
+    if len(frames) < 2:
+        return np.zeros(0, int), np.zeros(0)
+    frames, yaw = np.array(frames), np.array(yaw)
+    rate = np.abs((np.diff(yaw) + 45.0) % 90.0 - 45.0) / np.diff(frames)
+    if rate.size >= 3:
+        # running median of 3: the max of raw rates is biased up by the homography's
+        # angle noise (~0.05 deg/frame on a still camera); a steady turn is unchanged
+        rate = np.median(np.lib.stride_tricks.sliding_window_view(
+            np.r_[rate[0], rate, rate[-1]], 3), axis=1)
+    return frames[1:], rate
 
 
 def _height(records, ok, rig: Rig, depth_eff: float, warnings: list) -> HeightEstimate:
@@ -67,9 +120,15 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
             records[i].status = "marker layout inconsistent with the rest of the video"
         ok &= ~bad
     if ok.sum() < MIN_MEASURED:
-        reasons = sorted({r.status for r in records if r.status})
+        span = f"frames {frame[0]}-{frame[-1]}" if n else None
+        if n < MIN_MEASURED:
+            what = "the video has" if n == info.n_frames else "the tracked range has"
+            raise TrackingError(f"{what} only {n} frame{'s' * (n != 1)}; a shot needs at "
+                                f"least {MIN_MEASURED} measured frames", path=path, where=span)
+        lost = "; ".join(f"{kind}: {len(frs)} frame{'s' * (len(frs) != 1)}"
+                         for kind, frs, _ in reason_groups(records))
         raise TrackingError(f"the rock could be measured in only {int(ok.sum())} of {n} "
-                            f"frames ({'; '.join(reasons)[:200]})", path=path)
+                            f"frames ({lost})", path=path, where=span)
     depth_eff = rig.grid_depth_m / ICE_REFRACTIVE_INDEX
     est = _height(records, ok, rig, depth_eff, warnings)
     calib = loop_info["calib"]
@@ -120,13 +179,18 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         "sigma_theta": np.where(ok, sigma_theta, np.nan),
         "quality": np.where(ok, quality, np.nan),
     })
-    # warnings for lost frames, grouped by reason
-    by_reason: dict[str, list[int]] = {}
-    for r in records:
-        if r.status:
-            by_reason.setdefault(r.status, []).append(r.frame)
-    for reason, frs in by_reason.items():
+    # warnings for lost frames, grouped by kind of reason
+    for _, frs, reason in sorted(reason_groups(records), key=lambda g: g[1][0]):
         warnings.append(f"{path}: frame(s) {frame_ranges(frs)}: {reason} (ok = 0)")
+    turn_frames, turn = camera_turn(records, pp)
+    turn_max = float(turn.max()) if turn.size else None
+    if turn_max is not None and turn_max > TURN_WARN_DEG_PER_FRAME:
+        n_fast = int((turn > TURN_WARN_DEG_PER_FRAME).sum())
+        warnings.append(f"{path}: frame {turn_frames[np.argmax(turn)]}: the camera turns "
+                        f"{turn_max:.1f} deg/frame ({turn_max * info.fps:.0f} deg/s; "
+                        f"{n_fast} frame(s) above {TURN_WARN_DEG_PER_FRAME:g}): positions "
+                        "lose accuracy and the grid can be lost; turn the camera more "
+                        "slowly")
     stops = detect_stops(data, info.fps)
     for note in stops.notes:
         warnings.append(f"stops: {note}")
@@ -141,6 +205,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         focal_px=f_px,
         grid_spacing_px=float(np.nanmedian(spacing)) if np.isfinite(spacing).any() else None,
         frames_lost=int((~ok).sum()), warnings=warnings, version=__version__,
+        camera_turn_max_deg_per_frame=turn_max,
         video=str(path) if path is not None else None,
         n_frames_video=info.n_frames, codec=info.codec,
         frame_origin_lattice_m=shot["origin"].tolist(),
