@@ -11,27 +11,13 @@ from hypothesis import strategies as st
 from curltrack.errors import RigError, SeriesError
 from curltrack.rig import default_rig, load_rig
 from curltrack.series import read_series, sidecar_path, write_series
+from hardening.badinputs import RIG_TOML
 from synth import closed_form_series
 
-RIG = """
-[grid]
-spacing_x_m = 0.15
-spacing_y_m = 0.2
-colors = ["#d02020", "#2040d0"]
-[rock]
-diameter_m = 0.29
-height_m = 0.114
-[[markers]]
-color = "#ffd000"
-x_m = 0.08
-y_m = 0.0
-[[markers]]
-color = "#00c0ff"
-x_m = -0.08
-y_m = 0.0
-[camera]
-fps = 29.97
-"""
+# the contract's example rig (shared with the hardening tests), with an unequal spacing
+# and a [camera] table so that the round trip checks them too
+RIG = (RIG_TOML.replace("spacing_y_m = 0.15", "spacing_y_m = 0.2")
+       + "[camera]\nfps = 29.97\n")
 
 
 def test_rig_round_trip(tmp_path):

@@ -553,6 +553,32 @@ def test_output_over_an_input_is_refused(cli, hdir, rig_file, good_clip):
     cli.fails("calibrate", video, "--rig", rig_file, "-o", rig_file, names=[rig_file, "-o"])
 
 
+def test_every_writing_command_refuses_to_overwrite_an_input(cli, hdir, rig_file, good_clip):
+    """simulate, render, doctor, split, batch: refused before any work, inputs intact."""
+    import shutil
+
+    rig = hdir / "precious_rig.toml"
+    shutil.copy(rig_file, rig)
+    video = hdir / "precious2.mp4"
+    shutil.copy(good_clip[0], video)
+    sim = hdir / "precious_sim.csv"
+    cli.succeeds("simulate", "--v0", 1.0, "--omega0", 1.5, "--rig", rig, "-o", sim)
+    before = {p: p.read_bytes() for p in (rig, video, sim, sim.with_suffix(".json"))}
+    cli.fails("simulate", "--v0", 1.0, "--omega0", 1.5, "--rig", rig, "-o", rig,
+              names=[rig, "-o", "would overwrite the input"])
+    cli.fails("render", sim, "--rig", rig, "-o", hdir / "r.mp4", "--truth", sim,
+              names=[sim, "--truth"])
+    again = hdir / "shot.rig.toml"  # the rig a previous render wrote beside shot.mp4
+    shutil.copy(rig, again)
+    cli.fails("render", sim, "--rig", again, "-o", hdir / "shot.mp4",
+              names=[again, "-o (the rig beside it)"])
+    assert again.read_bytes() == before[rig]
+    cli.fails("doctor", video, "--rig", rig, "-o", video, names=[video, "-o"])
+    cli.fails("split", video, "--rig", rig, "-o", rig, names=[rig, "-o"])
+    cli.fails("batch", hdir, "--rig", rig, "-o", rig, names=[rig, "not a directory"])
+    assert {p: p.read_bytes() for p in before} == before
+
+
 def test_output_that_is_a_directory(cli, hdir, rig_file, good_clip):
     d = hdir / "an_output_dir"
     d.mkdir(exist_ok=True)
