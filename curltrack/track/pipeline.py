@@ -290,13 +290,19 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
 
     # OpenCV's own threads (and the decoder's, in curltrack.video) = CURLTRACK_THREADS,
     # default 1: the per-frame work is on small crops, and batch runs one process per core.
+    # BLAS too: its threads change the order of the sums in the large least-squares
+    # products of the calibration, and so the last digits of the result - the same
+    # video must give the same numbers in a batch worker and at the command line.
+    from threadpoolctl import threadpool_limits
+
     threads_before = cv2.getNumThreads()
     n_threads = decoder_threads()
     if n_threads > 0:
         cv2.setNumThreads(n_threads)
     try:
-        records, loop_info = track_frames(frames, rig, path=video_path,
-                                          progress=bar[1] if bar else None)
+        with threadpool_limits(limits=max(n_threads, 1), user_api="blas"):
+            records, loop_info = track_frames(frames, rig, path=video_path,
+                                              progress=bar[1] if bar else None)
     finally:
         cv2.setNumThreads(threads_before)
         if bar:
