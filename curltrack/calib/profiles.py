@@ -138,9 +138,8 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     inside = finite & ((centre[:, 0] > half + margin_px) & (centre[:, 0] < w - 1 - half - margin_px)
               & (centre[:, 1] > half + margin_px) & (centre[:, 1] < h - 1 - half - margin_px))
     if mask is not None:
-        ci = np.round(centre).astype(int)
         ok_idx = inside.copy()
-        ci = np.clip(ci, 0, [w - 1, h - 1])
+        ci = np.clip(np.round(centre), 0, [w - 1, h - 1]).astype(int)
         ok_idx &= mask[ci[:, 1], ci[:, 0]] == 0
         inside = ok_idx
     centre, dirv, fam, idx, half, along = (centre[inside], dirv[inside], fam[inside],

@@ -40,6 +40,27 @@ COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap
 SHUTTER = 0.5  # assumed exposure (fraction of a frame) for the motion-blur filter
 
 
+TURN_RETRIES_DEG = (4.0, -4.0, 8.0, -8.0)  # camera turns tried when the grid is lost
+#: A coarse snap is trusted only when at least this fraction of its profiles (in each
+#: family) found a thread: right snaps find >= 0.9, snaps onto the wrong lattice
+#: alignment after a sudden camera turn 0.1-0.3 (measured on erratic turns of +-30 deg).
+MIN_FOUND_SNAP = 0.5
+
+
+def _retry_predictions(Hc_pred):
+    """Predictions to try when the threads are not found near the motion prediction.
+
+    First moved by half a cell (threads half a cell off sit at the ends of the coarse
+    profiles), then turned about the optical axis by :data:`TURN_RETRIES_DEG` (a camera
+    turning faster than predicted, e.g. from the first frame, before its rate is known).
+    """
+    for da, db in ((0.5, 0.0), (0.0, 0.5), (0.5, 0.5)):
+        yield np.array([[1.0, 0, da], [0, 1.0, db], [0, 0, 1]]) @ Hc_pred
+    for deg in TURN_RETRIES_DEG:
+        c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+        yield Hc_pred @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 @dataclass
 class GridPose(PlaneMap):
     """The lattice in one frame.
@@ -209,17 +230,19 @@ class GridTracker:
             if attempt or (moved.max() < 4.0 and info["ok_fraction"] > 0.6):
                 break
         if info is None:
-            # Threads half a cell from where they were predicted sit at the ends of the
-            # coarse profiles: retry with the prediction moved by half a cell.
-            for da, db in ((0.5, 0.0), (0.0, 0.5), (0.5, 0.5)):
-                shifted = np.array([[1.0, 0, da], [0, 1.0, db], [0, 0, 1]]) @ Hc_pred
-                Hc, info, obs = self._measure(image_bgr, shifted, mask, motion, coarse=True)
+            for retry in _retry_predictions(Hc_pred):
+                Hc, info, obs = self._measure(image_bgr, retry, mask, motion, coarse=True)
                 if info is not None:
                     break
         if info is None:
             return failed("grid not visible (too few thread points)")
         if info["lines_a"] < 2 or info["lines_b"] < 2:
             return failed("grid not visible (fewer than 2 threads in a family)")
+        if attempt and info["ok_fraction"] < MIN_FOUND_SNAP:
+            # A snap from a poor prediction that found few of the threads it expected has
+            # locked onto something else than the lattice (e.g. after a sudden turn).
+            return failed(f"grid not followed (a snap found only "
+                          f"{100 * info['ok_fraction']:.0f} % of the expected threads)")
         jump = apply_h(Hc, np.zeros((1, 2)))[0] - apply_h(Hc_pred, np.zeros((1, 2)))[0]
         n = self.calib.n_colors if self.calib.colors_resolved else 0
         # The colours are read when the index could have slipped (a coarse snap, a large

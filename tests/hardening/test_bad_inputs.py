@@ -287,16 +287,34 @@ def test_fast_steady_camera_turn_is_flagged(cli, hdir, rig_file, wide_clip):
     meta = sidecar(out)
     assert meta["camera_turn_max_deg_per_frame"] == pytest.approx(rate, abs=0.2)
     assert any("camera turns" in w and "frame" in w for w in meta["warnings"])
+    # what is reported as measured is right to within the turn's loss of accuracy (not,
+    # e.g., the lattice re-acquired a quarter-turn off once the camera turned ~90 deg)
+    m = pd.read_csv(out).merge(truth.data[["frame", "x", "y"]], on="frame",
+                               suffixes=("", "_t"))
+    ok = m["ok"] == 1
+    assert np.hypot(m.x - m.x_t, m.y - m.y_t)[ok].max() < 0.010
 
 
-def test_camera_turning_too_fast(cli, hdir, rig_file, wide_clip):
-    """Erratic jumps of up to 30 deg between frames: cannot be followed -> exit 1."""
+@pytest.mark.parametrize("seed", [9, 3])
+def test_camera_turning_too_fast(cli, hdir, rig_file, wide_clip, seed):
+    """Erratic jumps of up to 30 deg between frames: mostly not followable.  Either exit 1
+    (too few frames measured), or the frames that could be measured are right, the rest
+    ok = 0, and the turning is named in the warnings - never a wrong row marked ok."""
     video, truth, _ = wide_clip
-    jumps = np.random.default_rng(9).uniform(-30, 30, len(truth.data))
-    v = write_frames(hdir / "turnfast.mp4",
+    jumps = np.random.default_rng(seed).uniform(-30, 30, len(truth.data))
+    v = write_frames(hdir / f"turnfast{seed}.mp4",
                      (rotate_crop(img, jumps[k], (400, 224))
                       for k, img in enumerate(read_frames(video))), truth.meta["fps"])
-    out = hdir / "turnfast.csv"
+    out = hdir / f"turnfast{seed}.csv"
+    res = cli("track", v, "--rig", rig_file, "-o", out)
+    if res.exit_code == 0:
+        m = pd.read_csv(out).merge(truth.data[["frame", "x", "y"]], on="frame",
+                                   suffixes=("", "_t"))
+        ok = m["ok"] == 1
+        assert ok.mean() < 0.6
+        assert np.hypot(m.x - m.x_t, m.y - m.y_t)[ok].max() < 0.010
+        assert any("camera turns" in w for w in sidecar(out)["warnings"])
+        return
     line = cli.fails("track", v, "--rig", rig_file, "-o", out, output=out, names=[v])
     # every kind of reason with its count, none cut off, none repeated with new numbers
     import re
