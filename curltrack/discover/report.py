@@ -10,7 +10,7 @@ from .scoring import bic
 from .shots import COORDS
 
 #: a candidate is named only if its delta-BIC beats every other candidate's by at least
-#: this much (and its chi-square gain that of every credible rival, see :func:`rivals`).  Delta-BIC differences are on the 2 ln(Bayes factor) scale: below 6 the
+#: this much (and fit better than every credible rival, see :func:`rivals`).  Delta-BIC differences are on the 2 ln(Bayes factor) scale: below 6 the
 #: evidence for one over the other is at most "positive", not "strong" (odds < 20:1,
 #: Kass & Raftery 1995).  Near the detection threshold a weak patch and a pick in y, or
 #: a weak pick and late curl, fit equally well; a wrong name is worse than saying so,
@@ -64,10 +64,12 @@ def _evidence(sc, h0) -> str:
 def rivals(best, scores, margin: float = AMBIGUITY_MARGIN) -> list:
     """Names of the other candidates the data cannot tell from ``best``.
 
-    A rival either comes within ``margin`` of ``best``'s delta-BIC, or fits about as well
-    (chi-square gain within ``margin``) while clearing its own look-elsewhere threshold:
+    A rival either comes within ``margin`` of ``best``'s delta-BIC, or fits at least as
+    well (chi-square gain >= ``best``'s) while clearing its own look-elsewhere threshold:
     then only the BIC's parameter count prefers ``best`` (a weak patch whose extent
-    the noise hides is an impulse, a pick with one parameter fewer).  A rival's own
+    the noise hides is an impulse, a pick with one parameter fewer).  A ``best`` that
+    fits better *and* has fewer parameters keeps its name (late curl against a lateral
+    kick late in the shot).  A rival's own
     threshold is not required in the first case: it speaks of chance under the baseline,
     not of how well the rival competes on these data.  A rival known only linearly
     (never refitted) is compared by that delta-BIC.
@@ -78,7 +80,7 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN) -> list:
             continue
         close_bic = o.delta_bic > best.delta_bic - margin
         close_fit = (o.chi2_gain is not None and best.chi2_gain is not None
-                     and o.chi2_gain > best.chi2_gain - margin
+                     and o.chi2_gain >= best.chi2_gain
                      and o.delta_bic > o.threshold["threshold"])
         if close_bic or close_fit:
             out.append(o.name)

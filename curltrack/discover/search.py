@@ -44,6 +44,8 @@ N_STARTS = 3
 #: in time per shot for a pick) that the first starts do not cover
 N_REGIONS = 4
 START_NFEV = 15
+#: starts finished with the location free
+N_FINISH = 2
 
 @dataclass
 class CandidateScore:
@@ -192,11 +194,12 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
     # nonlinear 465 and 170), so the starts must not all sit in one place.
     order = np.argsort(-stats)
     starts = []
+    tol = _close_tol(locs)
 
     def add(idx):
         i2, sub2 = keys[idx]
         loc2 = dict(locs[i2])
-        if not any(_close(loc2, st[1]) for st in starts):
+        if not any(_close(loc2, st[1], tol) for st in starts):
             starts.append((cols[i2][:, list(sub2)], loc2, sub2, ks[idx]))
 
     for idx in order:
@@ -228,15 +231,26 @@ def _regions(locs, n: int) -> np.ndarray:
     return out
 
 
-def _close(a: dict, b: dict) -> bool:
-    """Two scan locations closer than what a nonlinear fit walks by itself."""
+def _close(a: dict, b: dict, tol: float = 1.0) -> bool:
+    """Two scan locations closer than ``tol`` (s or m): the same start for the fit."""
     if a.get("shot") != b.get("shot"):
         return False
     if "t_s" in a:
-        return abs(a["t_s"] - b["t_s"]) < 1.0
+        return abs(a["t_s"] - b["t_s"]) < tol
     if "y_start_m" in a:
-        return abs(a["y_start_m"] - b["y_start_m"]) < 1.0 and abs(a["y_end_m"] - b["y_end_m"]) < 1.0
+        return abs(a["y_start_m"] - b["y_start_m"]) < tol and abs(a["y_end_m"] - b["y_end_m"]) < tol
     return True
+
+
+def _close_tol(locs) -> float:
+    """1 s or 1 m, but at most a tenth of the scanned time / stretch (a 2 m shot)."""
+    if not locs or not locs[0]:
+        return 1.0
+    if "t_s" in locs[0]:
+        span = max(loc["t_s"] for loc in locs) - min(loc["t_s"] for loc in locs)
+    else:
+        span = max(loc["y_end_m"] for loc in locs) - min(loc["y_start_m"] for loc in locs)
+    return float(min(1.0, 0.1 * span)) if span > 0 else 1.0
 
 
 def _start_model(base, fit0, cand, E, loc, sub) -> JointModel:
@@ -266,7 +280,7 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
     cand, starts = score._refine
     n = fit0.n
     loc_names = [p.name for p in cand.location]
-    best = None
+    tried = []
     for E, loc, sub, k in starts:
         m = _start_model(base, fit0, cand, E, loc, sub)
         if len(starts) > 1:
@@ -277,20 +291,29 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
         except CurltrackError as exc:
             score.note += f"; nonlinear fit failed ({exc})"
             continue
-        if best is None or f.chi2 < best[0].chi2:
-            best = (f, m, loc, k)
-    if best is None:
+        tried.append((f, m, loc, k))
+    if not tried:
         return score
-    fit1, m, loc, k = best
-    if len(starts) > 1:  # finish the best start with its location free
-        nfev0 = m.nfev
-        m.free = m.free + [p for p in loc_names if p not in m.free]
-        try:
-            fit1 = m.fit(max_nfev=FIT_MAX_NFEV, name=name, tol=FIT_TOL)
-        except CurltrackError as exc:
-            score.note += f"; nonlinear fit failed ({exc})"
+    tried.sort(key=lambda q: q[0].chi2)
+    if len(starts) > 1:
+        # finish the best N_FINISH starts with their locations free: a few iterations
+        # with the location fixed do not rank them reliably (the right place may still
+        # be walking the baseline back)
+        done = []
+        for f, m, loc, k in tried[:N_FINISH]:
+            nfev0 = m.nfev
+            m.free = m.free + [p for p in loc_names if p not in m.free]
+            try:
+                f = m.fit(max_nfev=FIT_MAX_NFEV, name=name, tol=FIT_TOL)
+            except CurltrackError as exc:
+                score.note += f"; nonlinear fit failed ({exc})"
+                continue
+            m.nfev = (nfev0[0] + m.nfev[0], nfev0[1] + m.nfev[1])
+            done.append((f, m, loc, k))
+        if not done:
             return score
-        m.nfev = (nfev0[0] + m.nfev[0], nfev0[1] + m.nfev[1])
+        tried = sorted(done, key=lambda q: q[0].chi2)
+    fit1, m, loc, k = tried[0]
     if not fit1.success:
         score.note += (f"; the nonlinear fit did not converge ({fit1.message}): its "
                        f"numbers are where it stopped")

@@ -23,7 +23,8 @@ STRENGTH = {
     "late_curl": "|k|",
     "ice_slope": "|slope| (mm/m): slope_y with one shot, slope_x with two shots of opposite spin",
     "velocity_dependent_friction": "-phi (dry baseline), phi_y = phi_theta",
-    "ripple": "|factor - 1| of five 1 m patches every 2.5 m (not a candidate)",
+    "ripple": "|factor - 1| of a square-wave friction ripple: 1.25 m stretches alternately "
+              "1 + s and 1 - s from y = 2 m to 9.5 m (zero mean; not a candidate)",
 }
 
 
@@ -97,8 +98,12 @@ def make_case(effect: str, strength: float, rng, n_shots: int = 1):
     elif effect == "velocity_dependent_friction":
         truth.update(phi_y=-strength, phi_theta=-strength)
     elif effect == "ripple":
-        effects = [("friction_patch", {"y_start_m": 2.0 + 2.5 * i, "y_end_m": 3.0 + 2.5 * i,
-                                       "factor": 1.0 + sign * strength}) for i in range(5)]
+        # zero mean, so that no single patch (a mean excess of friction over a stretch)
+        # and no impulse can stand in for it: five 1 m patches of the same sign (the
+        # earlier version) are, at 2 mm noise, one long patch of their mean excess
+        effects = [("friction_patch", {"y_start_m": 2.0 + 1.25 * i, "y_end_m": 3.25 + 1.25 * i,
+                                       "factor": 1.0 + sign * strength * (-1) ** i})
+                   for i in range(6)]
         truth["factor"] = 1.0 + sign * strength
     elif effect != "none":
         raise ValueError(effect)
