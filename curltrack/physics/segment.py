@@ -148,6 +148,26 @@ def band_forces(model: SegmentModel, v: float, omega: float):
     return float(F_f.sum()), float(F_l.sum()), float(torque.sum()) * 2.0 / model.R ** 2
 
 
+def _time_to_stop(speed_dec, t1: float, t_start: float) -> float:
+    """Time (s) from ``t1`` until the speed reaches zero.
+
+    ``speed_dec(t)`` gives (speed, deceleration) along the solution.  Near the stop the
+    deceleration scales as a power p of the speed (p = phi of the friction law, also for
+    coupled translation and rotation), so speed^(1-p) falls linearly: the time left is
+    u / ((1 - p) dec).  p is read from the solution a little earlier (linear
+    extrapolation, p = 0, stops a rock with phi > 0 early).
+    """
+    u1, dec1 = speed_dec(t1)
+    if dec1 <= 0:
+        return 0.0
+    ta = max(t_start, t1 - u1 / dec1)
+    ua, deca = speed_dec(ta)
+    p = 0.0
+    if ta < t1 and deca > 0 and ua > 1.2 * u1:
+        p = math.log(deca / dec1) / math.log(ua / u1)
+    return u1 / ((1.0 - min(p, 0.9)) * dec1)
+
+
 def simulate_segment(model: SegmentModel, t=None, rtol: float = 1e-8) -> Trajectory:
     """Integrate the segment-level model and sample it at times ``t`` (s).
 
@@ -196,15 +216,20 @@ def simulate_segment(model: SegmentModel, t=None, rtol: float = 1e-8) -> Traject
         if sol.status == 1:
             k = next(i for i, te in enumerate(sol.t_events) if len(te))
             kind = events[k][0]
-            d = rhs(t1, z1)
             if kind == "translation":
-                v = math.hypot(z1[2], z1[3])
-                acc = -(z1[2] * d[2] + z1[3] * d[3]) / v
-                stops[kind] = t1 + (v / acc if acc > 0 else 0.0)
+                def speed_dec(ti):
+                    z = sol.sol(ti) if ti < t1 else z1
+                    d, v = rhs(ti, z), math.hypot(z[2], z[3])
+                    return v, -(z[2] * d[2] + z[3] * d[3]) / max(v, 1e-300)
+            else:
+                def speed_dec(ti):
+                    z = sol.sol(ti) if ti < t1 else z1
+                    return abs(z[5]), -np.sign(z[5]) * rhs(ti, z)[5]
+            stops[kind] = t1 + _time_to_stop(speed_dec, t1, t0)
+            if kind == "translation":
                 z1[2] = z1[3] = 0.0
                 moving = False
             else:
-                stops[kind] = t1 + (abs(z1[5]) / abs(d[5]) if d[5] else 0.0)
                 z1[5] = 0.0
                 spinning = False
         state, t0 = z1, t1
