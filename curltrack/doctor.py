@@ -148,9 +148,7 @@ def _sample(image, rig, det):
     out["grid"] = True
     out["spacing_px"], out["residual_px"] = float(cal.spacing_px), float(cal.residual_px)
     out["n_threads"] = list(cal.n_threads)
-    c = np.array([[cal.width / 2, cal.height / 2], [cal.width / 2 + 20.0, cal.height / 2]])
-    e = np.diff(cal.image_to_ice(c), axis=0)[0]
-    out["yaw_deg"] = float(np.degrees(np.arctan2(e[1], e[0])))  # image +u in the lattice
+    out["yaw_deg"] = cal.yaw_deg()  # image +u in the lattice
     if mf.found.all():
         ice = cal.image_to_ice(mf.xy_px)
         if np.isfinite(ice).all():
@@ -228,12 +226,13 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
 
 def _turn_check(rep, pairs, fps: float):
     """Camera turn between consecutive frames, from the lattice's angle in each."""
+    from .calib.grid import lattice_turn_deg
+
     rates = []
     for a, b, frame in pairs:
         if a.get("yaw_deg") is None or b.get("yaw_deg") is None:
             continue
-        d = (b["yaw_deg"] - a["yaw_deg"] + 45.0) % 90.0 - 45.0  # lattice: modulo 90 deg
-        rates.append((abs(d), frame))
+        rates.append((abs(float(lattice_turn_deg(a["yaw_deg"], b["yaw_deg"]))), frame))
     if not rates:
         return
     worst, frame = max(rates)

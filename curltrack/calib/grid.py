@@ -33,6 +33,21 @@ from .lens import apply_h, camera_matrix, distort, undistort
 from .response import ColourModel, candidate_pixels, local_contrast, thread_response
 
 
+def image_yaw_deg(H, K, dist, pt_px=None) -> float:
+    """Direction (deg, CCW from the lattice's +x) of the image's +u axis at ``pt_px``
+    (observed px; default the principal point), through the image -> ice homography
+    ``H`` (undistorted px -> m) and the lens ``K``, ``dist``."""
+    c = K[:2, 2] if pt_px is None else np.asarray(pt_px, float)
+    a, b = apply_h(H, undistort(np.array([c, c + (20.0, 0.0)]), K, dist))
+    return float(np.degrees(np.arctan2(b[1] - a[1], b[0] - a[0])))
+
+
+def lattice_turn_deg(yaw_from_deg, yaw_to_deg):
+    """Turn (deg) between two yaws modulo the lattice's 90 deg symmetry (a square
+    lattice looks the same turned by a quarter): in [-45, 45)."""
+    return (np.asarray(yaw_to_deg) - yaw_from_deg + 45.0) % 90.0 - 45.0
+
+
 class PlaneMap:
     """Mixin: image <-> ice plane through ``self.H`` (undistorted px -> m), ``K``, ``dist``."""
 
@@ -45,6 +60,11 @@ class PlaneMap:
         """Ice-plane lattice-frame metres (N, 2) -> observed pixel coordinates (N, 2)."""
         p = np.atleast_2d(np.asarray(pts_m, float))
         return distort(apply_h(np.linalg.inv(self.H), p), self.K, self.dist)
+
+    def yaw_deg(self, pt_px=None) -> float:
+        """Direction (deg, CCW from the lattice's +x) of the image's +u axis at an image
+        point (default the principal point): the camera's turn against the grid."""
+        return image_yaw_deg(self.H, self.K, self.dist, pt_px)
 
     def metres_per_px(self, pt_px=None) -> float:
         """Local scale (m/px) of the ice plane at an image point (default the centre)."""

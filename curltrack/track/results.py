@@ -60,25 +60,25 @@ def reason_groups(records) -> list[tuple[str, list[int], str]]:
     return sorted(out, key=lambda g: (-len(g[1]), g[1][0]))
 
 
-def camera_turn(records, pp) -> tuple[np.ndarray, np.ndarray]:
+def camera_turn(records, calib) -> tuple[np.ndarray, np.ndarray]:
     """Frame-to-frame turn of the grid in the image (deg/frame) between measured frames.
 
-    The angle is that of the image's +u direction at ``pp`` (px) in the lattice frame,
-    from each measured frame's homography, differenced modulo 90 deg (the lattice's
-    symmetry) and divided by the frame gap.  Returns (frame of the later record, rate).
+    The yaw of the image's +u direction at the principal point in the lattice frame
+    (:func:`~curltrack.calib.grid.image_yaw_deg`), from each measured frame's homography,
+    differenced modulo 90 deg (:func:`~curltrack.calib.grid.lattice_turn_deg`) and
+    divided by the frame gap.  Returns (frame of the later record, rate).
     """
-    from ..calib.lens import apply_h
+    from ..calib.grid import image_yaw_deg, lattice_turn_deg
 
     frames, yaw = [], []
     for r in records:
         if r.status == "" and r.H is not None:
-            a, b = apply_h(r.H, np.vstack([pp, pp + (20.0, 0.0)]))
             frames.append(r.frame)
-            yaw.append(np.degrees(np.arctan2(b[1] - a[1], b[0] - a[0])))
+            yaw.append(image_yaw_deg(r.H, calib.K, calib.dist))
     if len(frames) < 2:
         return np.zeros(0, int), np.zeros(0)
     frames, yaw = np.array(frames), np.array(yaw)
-    rate = np.abs((np.diff(yaw) + 45.0) % 90.0 - 45.0) / np.diff(frames)
+    rate = np.abs(lattice_turn_deg(yaw[:-1], yaw[1:])) / np.diff(frames)
     if rate.size >= 3:
         # running median of 3: the max of raw rates is biased up by the homography's
         # angle noise (~0.05 deg/frame on a still camera); a steady turn is unchanged
@@ -182,7 +182,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # warnings for lost frames, grouped by kind of reason
     for _, frs, reason in sorted(reason_groups(records), key=lambda g: g[1][0]):
         warnings.append(f"{path}: frame(s) {frame_ranges(frs)}: {reason} (ok = 0)")
-    turn_frames, turn = camera_turn(records, pp)
+    turn_frames, turn = camera_turn(records, calib)
     turn_max = float(turn.max()) if turn.size else None
     if turn_max is not None and turn_max > TURN_WARN_DEG_PER_FRAME:
         n_fast = int((turn > TURN_WARN_DEG_PER_FRAME).sum())
