@@ -6,8 +6,8 @@
 position RMS (mm), theta RMS (deg), stop-frame errors (frames), parallax factor error
 (%), and the speed ratio tracking fps / decode-only fps measured in the same run.
 
-``bench_speed(width, height, ...)`` (and ``bench_speed_1080p()``, called by
-scripts/bench.py) measures tracking against decoding alone on the same rendered video in
+``bench_speed(width, height, ...)`` (called by scripts/bench.py at 960x540 and
+1920x1080) measures tracking against decoding alone on the same rendered video in
 one run, with the per-stage milliseconds per frame (decode, grid, markers, other) and
 the one-off calibration, and the accuracy against truth on the same frames.
 
@@ -198,11 +198,6 @@ def _iter_frames(video):
     from curltrack.video import iter_frames
 
     return iter_frames(video)
-
-
-def bench_speed_1080p() -> dict:
-    """:func:`bench_speed` at 1920 x 1080 (one thread per process)."""
-    return bench_speed(1920, 1080)
 
 
 def bench_setup(motion="ladder", height_m=2.0, tilt_deg=1.5, k1=-0.08, spacing_m=0.15,
