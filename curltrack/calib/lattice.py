@@ -403,11 +403,15 @@ def per_line_offsets(xs, w, Hc, K, dist, band_px: float = 3.0):
     return out
 
 
-def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float = 2.0):
+def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float = 2.0,
+               q=None, tol_px: float = 0.01):
     """Refine ``Hc`` on thread points of known family (0/1) and thread index.
 
     Robust (Tukey, ``clip_px`` scaled by the residuals' spread) weighted Gauss-Newton;
-    the lens is fixed.
+    the lens is fixed.  ``xy`` are observed px; ``q``, when given, the same points
+    already undistorted and normalised (``(x_u - c) / f``), which saves undistorting.
+    At most ``iterations`` steps; stops after a step that moves no point by more than
+    ``tol_px`` (px).
 
     Returns
     -------
@@ -417,39 +421,36 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
         image centre, from the normal equations).
     """
     f, c = K[0, 0], K[:2, 2]
-    q = (undistort(xy, K, dist) - c) / f
-    fam_a, fam_b = fam == 0, fam == 1
-    ia = ib = idx.astype(float)
-    na = int(fam_a.sum())
-    # rows in family order (A then B), as _residuals/_h_jacobian order them
-    order = np.r_[np.flatnonzero(fam_a), np.flatnonzero(fam_b)]
-    qo, io = q[order], ia[order]
-    x, y = qo[:, 0], qo[:, 1]
-    row = np.r_[np.zeros(na, int), np.ones(len(order) - na, int)]
+    if q is None:
+        q = (undistort(xy, K, dist) - c) / f
+    # rows in family order (A then B)
+    order = np.argsort(fam, kind="stable")
+    row = fam[order].astype(np.intp)
+    na = int(np.count_nonzero(row == 0))
+    x, y = q[order, 0], q[order, 1]
+    io = idx[order].astype(float)
     w0 = w[order]
+    parts = (slice(0, na), slice(na, None))
     J = np.zeros((len(order), 8))
+    cols = np.where(row[:, None] == 0, np.arange(3), np.arange(3, 6))  # h0..h2 or h3..h5
+    rows = np.arange(len(order))[:, None]
     for it in range(iterations):
-        pa, pb = periods_px(Hc, f)
-        p = np.where(row == 0, pa, pb)
+        p = np.asarray(periods_px(Hc, f))[row]
         wq = Hc[2, 0] * x + Hc[2, 1] * y + Hc[2, 2]
         val = (Hc[row, 0] * x + Hc[row, 1] * y + Hc[row, 2]) / wq
         r = (val - io) * p
         ww = w0.copy()
         # Tukey weights about each family's median residual (a common shift of a family
         # is the correction sought, not an outlier), scale from the MAD
-        for part in (slice(0, na), slice(na, None)):
+        for part in parts:
             rp = r[part]
             if rp.size:
                 med = median(rp)
                 scale = max(clip_px, 4.5 * 1.4826 * median(np.abs(rp - med)))
                 ww[part] *= np.clip(1 - ((rp - med) / scale) ** 2, 0, None) ** 2
         # d(residual)/d(h0..h7), analytic (as _h_jacobian)
-        J[:] = 0.0
         pw = p / wq
-        for rr, part in ((0, slice(0, na)), (1, slice(na, None))):
-            J[part, 3 * rr] = (pw * x)[part]
-            J[part, 3 * rr + 1] = (pw * y)[part]
-            J[part, 3 * rr + 2] = pw[part]
+        J[rows, cols] = np.stack([pw * x, pw * y, pw], axis=1)
         J[:, 6] = -pw * val * x
         J[:, 7] = -pw * val * y
         JW = J * ww[:, None]
@@ -457,13 +458,16 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
         A += 1e-9 * np.trace(A) * np.eye(8)
         step = np.linalg.solve(A, -JW.T @ r)
         Hc = Hc + np.append(step, 0.0).reshape(3, 3)
+        if np.abs(J @ step).max(initial=0.0) < tol_px:
+            break
     used = ww > 0
     chi2 = float(np.sum(ww * r * r))
+    pa, pb = periods_px(Hc, f)
     # 1-sigma of the translation terms h2, h5 (cells) -> px at the image centre
     cov = np.linalg.inv(A) * chi2 / max(int(used.sum()) - 8, 1)
     info = {"rms_px": float(np.sqrt(chi2 / max(ww.sum(), 1e-12))),
             "n_a": int(used[:na].sum()), "n_b": int(used[na:].sum()),
-            "lines_a": int(len(np.unique(ia[fam_a][used[:na]]))),
-            "lines_b": int(len(np.unique(ib[fam_b][used[na:]]))),
+            "lines_a": int(len(np.unique(io[:na][used[:na]]))),
+            "lines_b": int(len(np.unique(io[na:][used[na:]]))),
             "sigma_px": float(np.sqrt(cov[2, 2] * pa ** 2 + cov[5, 5] * pb ** 2))}
     return Hc, info

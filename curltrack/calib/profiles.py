@@ -14,6 +14,7 @@ cheaper than decoding.
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -46,14 +47,86 @@ def _frame_edge(w, h, K_flat, dist):
     return q
 
 
+def _group_rows(a, starts):
+    """Sums of consecutive rows of ``a`` (N, S) from each of ``starts`` to the next,
+    as a C-contiguous float32 (G, S) array."""
+    cs = np.empty((a.shape[0] + 1, a.shape[1]))
+    cs[0] = 0.0
+    np.cumsum(a, axis=0, out=cs[1:])
+    return (cs[np.r_[starts[1:], len(a)]] - cs[starts]).astype(np.float32)
+
+
 def _lattice_to_px(Hc_inv, K, dist, ab):
+    """Lattice coordinates (cells) -> (undistorted normalised q, observed px)."""
     q = apply_h(Hc_inv, ab)
-    return distort(K[:2, 2] + K[0, 0] * q, K, dist)
+    return q, distort(K[:2, 2] + K[0, 0] * q, K, dist)
+
+
+def _across(Hc_inv, K, dist, ab, fam, cells=0.02):
+    """Points on the threads and the way across them, from lattice coordinates.
+
+    Returns ``q`` (N, 2) undistorted normalised coordinates, ``px`` (N, 2) observed
+    pixels, ``u`` (N, 2) the unit image direction in which the thread index grows,
+    ``dq`` (N, 2) the change of ``q`` per observed pixel along ``u`` (all NaN-free:
+    points that do not map are returned far outside the image), and ``finite`` (N,).
+    """
+    n = len(ab)
+    step = np.zeros_like(ab)
+    step[np.arange(n), fam] = cells
+    q2, px2 = _lattice_to_px(Hc_inv, K, dist, np.concatenate([ab, ab + step]))
+    q, px = q2[:n], px2[:n]
+    d = px2[n:] - px
+    norm = np.hypot(d[:, 0], d[:, 1])[:, None]
+    finite = np.isfinite(px).all(axis=1) & np.isfinite(norm[:, 0]) & (norm[:, 0] > 0)
+    norm = np.where(finite[:, None], norm, 1.0)
+    u = np.where(finite[:, None], d / norm, 0.0)
+    dq = np.where(finite[:, None], (q2[n:] - q) / norm, 0.0)
+    return np.where(finite[:, None], q, 0.0), np.where(finite[:, None], px, -1e6), u, dq, finite
+
+
+@dataclass
+class ThreadPoints:
+    """Sub-pixel thread points of one frame (one per averaged stretch of thread).
+
+    Attributes
+    ----------
+    xy : (N, 2) ndarray
+        Observed thread points (px).
+    q : (N, 2) ndarray
+        The same points undistorted and normalised, ``(x_u - c) / f``.
+    w : (N,) ndarray
+        Weights (signal area).
+    fam, idx : (N,) int ndarray
+        Thread family (0/1) and index.
+    noise : float
+        Robust noise of the detection signal.
+    n_profiles : int
+        Stretches of thread sampled (found or not).
+    found : list of float
+        Fraction of the sampled stretches of family 0 / 1 where a thread was found.
+    """
+
+    xy: np.ndarray
+    q: np.ndarray
+    w: np.ndarray
+    fam: np.ndarray
+    idx: np.ndarray
+    noise: float
+    n_profiles: int
+    found: list
+    _colour_of: object = field(default=None, repr=False)
+
+    @functools.cached_property
+    def colour(self):
+        """(N, k) contrast at each point projected on each thread colour's direction
+        (None without a colour model); computed on first use."""
+        return None if self._colour_of is None else self._colour_of()
 
 
 def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0,
                    mask=None, margin_px: float = 3.0,
-                   gap_px=(4.0, 4.0), blur_px=(0.0, 0.0), seg_px: float = 40.0):
+                   gap_px=(4.0, 4.0), blur_px=(0.0, 0.0), seg_px: float = 40.0,
+                   seg_every: int = 1):
     """Sub-pixel thread points of a frame near the predicted lattice ``Hc``.
 
     Parameters
@@ -80,140 +153,115 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     seg_px : float
         Length (px) of thread over which consecutive profiles are averaged into one
         point.
+    seg_every : int
+        Sample only every ``seg_every``-th segment of each thread: fewer points, each as
+        good (ignored for threads averaged whole).
     mask : (H, W) uint8, optional
         Nonzero = ignore.
 
     Returns
     -------
-    dict with ``xy`` (N, 2) observed thread points (px), ``w`` (N,) weights (signal
-    area), ``fam`` (N,) 0/1, ``idx`` (N,) thread index, ``colour`` (N, k) projections of
-    the peak's contrast on each colour direction (or None), ``noise`` (robust noise of
-    the signal).
+    ThreadPoints or None
+        None when the prediction maps no thread into the image.
     """
     import cv2
 
     h, w = image_bgr.shape[:2]
     f = K[0, 0]
-    Hc_inv = np.linalg.inv(Hc)
     ab_edge = apply_h(Hc, _frame_edge(w, h, tuple(K.ravel()), tuple(dist)))
     if not np.all(np.isfinite(ab_edge)):
         return None  # a degenerate prediction (the view folds over): nothing to sample
     lo, hi = ab_edge.min(axis=0), ab_edge.max(axis=0)
     if np.any(hi - lo > 1000):
         return None
+    Hc_inv = np.linalg.inv(Hc)
     J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])
     p_cell = f / np.linalg.norm(J, axis=1)  # px per cell, families A, B
-    pts, fams, idxs = [], [], []
+    # Profiles: on every thread line in view, every step_px along it (clear of the
+    # crossing threads), ordered by family, thread, position along the thread.
+    whole = np.asarray(blur_px) >= 6.0
+    seg_cells = np.where(whole, 1e6, seg_px) / p_cell[::-1]  # (along each family)
+    pts, fams = [], []
     for fam in (0, 1):
         other = 1 - fam
         lines = np.arange(np.ceil(lo[fam]), np.floor(hi[fam]) + 1)
-        ds = step_px / p_cell[other]
-        along = np.arange(lo[other], hi[other], ds)
-        gap = gap_px[other] / p_cell[other]  # stay clear of crossing threads
-        along = along[np.abs(along - np.round(along)) > gap]
-        if len(lines) == 0 or len(along) == 0:
-            continue
-        L, A = np.meshgrid(lines, along, indexing="ij")
-        ab = np.empty((L.size, 2))
-        ab[:, fam], ab[:, other] = L.ravel(), A.ravel()
+        along = np.arange(lo[other], hi[other], step_px / p_cell[other])
+        keep = np.abs(along - np.round(along)) > gap_px[other] / p_cell[other]
+        if seg_every > 1 and not whole[fam]:
+            keep &= np.floor(along / seg_cells[fam]) % seg_every == 0
+        along = along[keep]
+        ab = np.empty((len(lines) * len(along), 2))
+        ab[:, fam] = np.repeat(lines, len(along))
+        ab[:, other] = np.tile(along, len(lines))
         pts.append(ab)
-        fams.append(np.full(L.size, fam))
-        idxs.append(L.ravel())
-    if not pts:
-        return None
+        fams.append(np.full(len(ab), fam))
     ab = np.concatenate(pts)
+    if len(ab) == 0:
+        return None
     fam = np.concatenate(fams)
-    idx = np.concatenate(idxs).astype(int)
-    along = np.where(fam == 0, ab[:, 1], ab[:, 0])
-    centre = _lattice_to_px(Hc_inv, K, dist, ab)
-    eps = np.zeros_like(ab)
-    eps[fam == 0, 0] = 0.02
-    eps[fam == 1, 1] = 0.02
-    dirv = _lattice_to_px(Hc_inv, K, dist, ab + eps) - centre
-    norm = np.linalg.norm(dirv, axis=1, keepdims=True)
-    finite = np.isfinite(centre).all(axis=1) & np.isfinite(norm[:, 0]) & (norm[:, 0] > 0)
-    centre = np.where(finite[:, None], centre, -1e6)  # (outside the image below)
-    dirv = np.where(finite[:, None], dirv / np.where(norm > 0, norm, 1.0), 0.0)
-    half = np.where(fam == 0, half_px[0], half_px[1])
-    inside = finite & ((centre[:, 0] > half + margin_px) & (centre[:, 0] < w - 1 - half - margin_px)
-              & (centre[:, 1] > half + margin_px) & (centre[:, 1] < h - 1 - half - margin_px))
+    _, centre, dirv, _, finite = _across(Hc_inv, K, dist, ab, fam)
+    half = np.asarray(half_px, float)[fam]
+    lim = half + margin_px
+    inside = finite & (centre[:, 0] > lim) & (centre[:, 0] < w - 1 - lim) \
+        & (centre[:, 1] > lim) & (centre[:, 1] < h - 1 - lim)
     if mask is not None:
-        ok_idx = inside.copy()
-        ci = np.clip(np.round(centre), 0, [w - 1, h - 1]).astype(int)
-        ok_idx &= mask[ci[:, 1], ci[:, 0]] == 0
-        inside = ok_idx
-    centre, dirv, fam, idx, half, along = (centre[inside], dirv[inside], fam[inside],
-                                           idx[inside], half[inside], along[inside])
-    if len(centre) == 0:
+        ci = np.clip(np.round(centre), 0, [w - 1, h - 1]).astype(np.intp)
+        inside &= mask[ci[:, 1], ci[:, 0]] == 0
+    ab, fam, centre, dirv, half = ab[inside], fam[inside], centre[inside], dirv[inside], half[inside]
+    if len(ab) == 0:
         return None
     dt_px = max(1.0, max(half_px) / 10.0)  # <= 21 samples per profile
     n_s = int(np.ceil(max(half_px) / dt_px)) * 2 + 1
-    t = np.linspace(-1.0, 1.0, n_s)[None, :] * half[:, None]  # px along the normal
-    mx = (centre[:, 0:1] + t * dirv[:, 0:1]).astype(np.float32)
-    my = (centre[:, 1:2] + t * dirv[:, 1:2]).astype(np.float32)
-    prof = cv2.remap(image_bgr, mx, my, cv2.INTER_LINEAR)  # (N, S, 3) uint8
-    frac = np.linspace(0.0, 1.0, n_s, dtype=np.float32)[None, :]
+    frac = np.linspace(0.0, 1.0, n_s, dtype=np.float32)
+    t = (2.0 * frac - 1.0) * half[:, None].astype(np.float32)  # px along the profile
+    # (sample-major: remap is much faster on a few long rows than on many short ones)
+    c32, d32, tT = centre.astype(np.float32).T, dirv.astype(np.float32).T, t.T
+    prof = cv2.remap(image_bgr, c32[0] + tT * d32[0], c32[1] + tT * d32[1],
+                     cv2.INTER_LINEAR)  # (S, N, 3) uint8
+    # Consecutive profiles of a thread are averaged over segments (longer when blurred:
+    # a smeared thread is faint in any one profile but straight over a long stretch).
+    # The profiles come ordered by family, thread and position along it.
+    other = 1 - fam
+    along = ab[np.arange(len(ab)), other]
+    key = np.stack([fam, ab[np.arange(len(ab)), fam], np.floor(along / seg_cells[fam])], axis=1)
+    starts = np.flatnonzero(np.r_[True, np.any(key[1:] != key[:-1], axis=1)])
+    counts = np.diff(np.r_[starts, len(key)])
+    inv_counts = (1.0 / counts).astype(np.float32)[:, None]
+    # The thread signal: the profile less the straight line through its two ends.
     if model.directions is None:
         pf = prof.astype(np.float32)
-        b0, b1 = pf[:, :2].mean(axis=1), pf[:, -2:].mean(axis=1)
-        diff = pf - (b0[:, None] * (1 - frac[..., None]) + b1[:, None] * frac[..., None])
-        sig = np.sqrt(diff[:, :, 0] ** 2 + diff[:, :, 1] ** 2 + diff[:, :, 2] ** 2)
+        base = pf[:2].mean(axis=0)
+        diff = pf - base - (pf[-2:].mean(axis=0) - base) * frac[:, None, None]
+        sig = _group_rows(np.sqrt(np.einsum("snc,snc->sn", diff, diff)).T, starts) * inv_counts
     else:
         # One linear projection on the mean contrast direction of the thread colours for
-        # finding the threads (the colours are told apart later, at the peaks only).
+        # finding the threads (the colours are told apart later, at the peaks only);
+        # linear, so the members are averaged first.
         d = model.directions.mean(axis=0)
-        d = (d / np.linalg.norm(d)).astype(np.float32)
-        raw = cv2.transform(prof.reshape(-1, 1, 3).astype(np.float32), d[None, :])
-        raw = raw.reshape(len(prof), n_s)
-        b0, b1 = raw[:, :2].mean(axis=1), raw[:, -2:].mean(axis=1)
-        sig = raw - (b0[:, None] * (1 - frac) + b1[:, None] * frac)
-    # Average consecutive profiles of a thread over segments (longer when blurred: a
-    # smeared thread is faint in any one profile but straight over a long stretch).
-    # (a thread smeared over more than a few px is too faint for short segments: whole
-    # visible threads then)
-    seg_cells = np.array([(seg_px if blur_px[j] < 6.0 else 1e6) / p_cell[1 - j]
-                          for j in (0, 1)])
-    seg = np.floor(along / seg_cells[fam]).astype(np.int64)
-    key = (fam.astype(np.int64) << 40) + ((idx.astype(np.int64) + (1 << 19)) << 20) \
-        + (seg - seg.min())
-    order = np.argsort(key, kind="stable")
-    key_s = key[order]
-    starts = np.nonzero(np.r_[True, key_s[1:] != key_s[:-1]])[0]
-    counts = np.diff(np.r_[starts, len(key_s)])
-    first = order[starts]
-
-    def group(a):
-        return np.add.reduceat(a[order], starts, axis=0)
-
-    sig = group(sig) / counts[:, None]
-    member_group = np.empty(len(key), np.int64)
-    member_group[order] = np.repeat(np.arange(len(starts)), counts)
-    # The averaged profile measures the thread's mean offset from the prediction, i.e.
-    # the offset at the members' mean position along it: represent the group by the
-    # member profile nearest that position (on the predicted, possibly curved, thread).
-    mean_along = group(along) / counts
-    gap_along = np.abs(along - mean_along[member_group])
-    rep = np.lexsort((gap_along, member_group))
-    rep = rep[np.r_[0, np.cumsum(counts)[:-1]]]
-    centre, dirv = centre[rep], dirv[rep]
-    fam, idx, t = fam[first], idx[first], t[first]
+        raw = cv2.transform(prof.astype(np.float32), (d / np.linalg.norm(d))[None])
+        sig = _group_rows(raw.T, starts) * inv_counts
+        b0 = 0.5 * (sig[:, 0] + sig[:, 1])
+        sig -= b0[:, None] + (0.5 * (sig[:, -1] + sig[:, -2]) - b0)[:, None] * frac
+    # The averaged profile measures the thread's offset at the members' mean position:
+    # that point of the predicted thread (a straight line in lattice coordinates).
+    ab_g = np.add.reduceat(ab, starts, axis=0) / counts[:, None]
+    fam, t = fam[starts], t[starts]
+    q_g, centre, dirv, dq, _ = _across(Hc_inv, K, dist, ab_g, fam)
     # Find the thread on a copy smoothed by the blur length (merges the ghosts of a
     # smeared thread), take the centroid of the unsmoothed signal over the run found.
     det = sig.copy()
     for j in (0, 1):
+        k = int(round(BOX * blur_px[j] * (n_s - 1) / (2.0 * half_px[j])))
         rows = fam == j
-        if not rows.any():
-            continue
-        dtj = 2.0 * half_px[j] / (n_s - 1)
-        k = int(round(BOX * blur_px[j] / dtj))
-        if k >= 2:
+        if k >= 2 and rows.any():
             det[rows] = _box(sig[rows], k)
-    peak = det.max(axis=1)
+    rows = np.arange(len(det))
     kpk = det.argmax(axis=1)
+    peak = det[rows, kpk]
     # the contiguous run above 30 % of the peak that contains the peak
     above = det >= 0.3 * peak[:, None]
     run = np.cumsum(~above, axis=1)
-    keep = above & (run == run[np.arange(len(kpk)), kpk][:, None])
+    keep = above & (run == run[rows, kpk][:, None])
     # noise of the detection signal away from the run found (and from the window ends,
     # which define the baseline)
     kw = max(3, min(9, n_s // 4))
@@ -225,34 +273,30 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     noise = np.zeros(2)
     rel_floor = np.zeros(2)
     for j in (0, 1):
-        dj = det[fam == j]
-        if dj.size:
-            aj = away[fam == j]
+        rows_j = fam == j
+        if rows_j.any():
+            aj = away[rows_j]
             if aj.sum() > 0.1 * aj.size:
-                noise[j] = 1.4826 * median(np.abs(dj[aj])) + 1e-3
-            rel_floor[j] = 0.25 * median(dj.max(axis=1))
-    det = np.maximum(det, 0.0)
-    sig = np.maximum(sig, 0.0)
+                noise[j] = 1.4826 * median(np.abs(det[rows_j][aj])) + 1e-3
+            rel_floor[j] = 0.25 * median(peak[rows_j])
     floor = 0.3 * sig.max(axis=1, where=keep, initial=0.0)
     s = np.where(keep, np.maximum(sig - floor[:, None], 0.0), 0.0)
-    area = s.sum(axis=1) * counts
-    off = (s * t).sum(axis=1) / np.maximum(s.sum(axis=1), 1e-9)
-    edge_peak = (kpk <= 1) | (kpk >= n_s - 2)
-    sel = (peak > np.maximum(4.0 * noise, rel_floor)[fam]) & ~edge_peak
-    xy = centre + off[:, None] * dirv
-    colour = None
+    s_sum = s.sum(axis=1)
+    off = (s * t).sum(axis=1) / np.maximum(s_sum, 1e-9)
+    sel = (peak > np.maximum(4.0 * noise, rel_floor)[fam]) & (kpk > 1) & (kpk < n_s - 2)
+    colour_of = None
     if model.directions is not None:
-        # contrast (BGR) of each member profile at its group's peak, projected on each
-        # thread colour's direction, summed over the group
-        kk = kpk[member_group]
-        rows = np.arange(len(prof))
-        pk = prof[rows, kk].astype(np.float32)
-        ends = 0.5 * (prof[:, :2].astype(np.float32).mean(axis=1)
-                      + prof[:, -2:].astype(np.float32).mean(axis=1))
-        colour = group((pk - ends) @ model.directions.T.astype(np.float32))
-    noise = float(np.max(noise))
-    return {"xy": xy[sel], "w": area[sel], "fam": fam[sel], "idx": idx[sel],
-            "colour": None if colour is None else colour[sel], "noise": noise,
-            "n_profiles": int(len(sel)),
-            "found": [float(np.mean(sel[fam == j])) if np.any(fam == j) else 0.0
-                      for j in (0, 1)]}
+        def colour_of():
+            # contrast (BGR) of each member profile at its group's peak, projected on
+            # each thread colour's direction, summed over the group
+            pk = prof[np.repeat(kpk, counts), np.arange(prof.shape[1])].astype(np.float32)
+            ends = 0.25 * (prof[:2].sum(axis=0, dtype=np.float32)
+                           + prof[-2:].sum(axis=0, dtype=np.float32))
+            c = np.add.reduceat((pk - ends) @ model.directions.T.astype(np.float32), starts)
+            return c[sel]
+
+    found = [float(np.mean(sel[fam == j])) if np.any(fam == j) else 0.0 for j in (0, 1)]
+    return ThreadPoints(xy=(centre + off[:, None] * dirv)[sel], q=(q_g + off[:, None] * dq)[sel],
+                        w=(s_sum * counts)[sel], fam=fam[sel], idx=ab_g[rows, fam][sel].round().astype(int),
+                        noise=float(np.max(noise)), n_profiles=int(len(sel)), found=found,
+                        _colour_of=colour_of)

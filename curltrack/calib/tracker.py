@@ -35,6 +35,7 @@ AMBIGUOUS_CELLS = 0.35  # unexplained jump (cells) beyond which the index is not
 PROFILE_STEP_PX = 18.0  # spacing of the cross profiles along each thread (px), at least
 PROFILES_PER_CELL = 2.5  # at most this many profiles per cell along a thread: a sharper
 # (larger) view measures each profile as well in px, hence better in metres
+SEG_EVERY = 2  # profiles on every other 40 px stretch of thread only
 COLOUR_CHECK_EVERY = 10  # frames between routine checks of the thread colour sequence
 COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap
 SHUTTER = 0.5  # assumed exposure (fraction of a frame) for the motion-blur filter
@@ -166,10 +167,10 @@ class GridTracker:
             obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model,
                                  half, step_px=COARSE_STEP_PX, mask=mask, gap_px=gap,
                                  blur_px=SHUTTER * blur)
-            if obs is None or np.sum(obs["fam"] == 0) < 6 or np.sum(obs["fam"] == 1) < 6:
+            if obs is None or np.sum(obs.fam == 0) < 6 or np.sum(obs.fam == 1) < 6:
                 return Hc, None, obs
-            Hc, _ = fit_points(obs["xy"], obs["w"], obs["fam"], obs["idx"], Hc, self.K,
-                               self.dist, iterations=2, clip_px=4.0)
+            Hc, _ = fit_points(obs.xy, obs.w, obs.fam, obs.idx, Hc, self.K, self.dist,
+                               iterations=2, clip_px=4.0, q=obs.q)
         # Profile half-lengths: prediction error plus motion blur across the threads.
         # (the smear of a thread is shutter x motion long: +-0.25 x motion for a half-open
         # shutter; 0.3 leaves room for a longer exposure)
@@ -179,12 +180,12 @@ class GridTracker:
         step = max(PROFILE_STEP_PX, min(periods) / PROFILES_PER_CELL)
         obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model, half,
                              step_px=step, mask=mask, gap_px=gap,
-                             blur_px=SHUTTER * blur)
-        if obs is None or np.sum(obs["fam"] == 0) < 10 or np.sum(obs["fam"] == 1) < 10:
+                             blur_px=SHUTTER * blur, seg_every=SEG_EVERY)
+        if obs is None or np.sum(obs.fam == 0) < 10 or np.sum(obs.fam == 1) < 10:
             return Hc, None, obs
-        Hc, info = fit_points(obs["xy"], obs["w"], obs["fam"], obs["idx"], Hc, self.K,
-                              self.dist, iterations=3)
-        info["ok_fraction"] = min(obs["found"])
+        Hc, info = fit_points(obs.xy, obs.w, obs.fam, obs.idx, Hc, self.K, self.dist,
+                              iterations=3, q=obs.q)
+        info["ok_fraction"] = min(obs.found)
         return Hc, info, obs
 
     def update(self, image_bgr, index: int, mask=None) -> GridPose:
@@ -282,17 +283,17 @@ class GridTracker:
         when family j's colours were read well enough to check its index (mod n).
         """
         confirmed = [False, False]
-        if n < 2 or obs["colour"] is None:
+        if n < 2 or obs.colour is None:
             return np.zeros(2), "", False, confirmed
         k = np.zeros(2)
         notes = []
         ambiguous = False
         for j in (0, 1):
-            sel = obs["fam"] == j
-            ids = obs["idx"][sel]
+            sel = obs.fam == j
+            ids = obs.idx[sel]
             cols = {}
             for i in np.unique(ids):
-                cols[int(i)] = int(np.argmax(obs["colour"][sel][ids == i].sum(axis=0)))
+                cols[int(i)] = int(np.argmax(obs.colour[sel][ids == i].sum(axis=0)))
             p, agree, _ = colour_phase(cols, n, sign=self.calib.color_signs[j])
             if agree < 0.8 or len(cols) < n + 1:
                 continue
