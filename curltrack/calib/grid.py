@@ -180,13 +180,14 @@ def normaliser(K) -> np.ndarray:
 
 def cells_from_metric(H, K, spacing_x_m, spacing_y_m) -> np.ndarray:
     """Undistorted px -> metres homography  ->  normalised coords -> cells homography."""
-    Hc = np.diag([1 / spacing_x_m, 1 / spacing_y_m, 1.0]) @ H @ np.linalg.inv(normaliser(K))
+    # (the normaliser's inverse is K itself: K = [[f, 0, cx], [0, f, cy], [0, 0, 1]])
+    Hc = (H @ K) * np.array([[1 / spacing_x_m], [1 / spacing_y_m], [1.0]])
     return Hc / Hc[2, 2]
 
 
 def metric_from_cells(Hc, K, spacing_x_m, spacing_y_m) -> np.ndarray:
     """Inverse of :func:`cells_from_metric`."""
-    H = np.diag([spacing_x_m, spacing_y_m, 1.0]) @ Hc @ normaliser(K)
+    H = (Hc @ normaliser(K)) * np.array([[spacing_x_m], [spacing_y_m], [1.0]])
     return H / H[2, 2]
 
 

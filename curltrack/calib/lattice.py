@@ -116,17 +116,25 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
         Rows map ``(x - cx, y - cy, 1)`` to cells ``a``, ``b``; None if fewer than two
         periodic families were found.
     """
+    import cv2
+
     h, wd = resp.shape
-    r = resp - resp.mean()
-    win = np.outer(np.hanning(h), np.hanning(wd))
-    F = np.fft.fftshift(np.fft.fft2(r * win))
-    mag = np.abs(F)
-    fy, fx = np.meshgrid(np.fft.fftshift(np.fft.fftfreq(h)), np.fft.fftshift(np.fft.fftfreq(wd)),
-                         indexing="ij")
-    fr = np.hypot(fx, fy)
     # 16 px: closer threads (1-3 px wide, blurred) are not worth measuring, and image
     # artefacts are periodic at shorter scales (JPEG blocks at 8 px, tiled noise ~11 px)
     min_period, max_period = MIN_PERIOD_PX, min(h, wd) / 3.0
+    # The spectrum is read below 1/16 cycles/px only: an image averaged over n x n px
+    # blocks (n <= 4, the shortest period still >= 4 samples) has the same peaks at a
+    # fraction of the cost; the frequency resolution (1/size of the image) is unchanged.
+    n = int(np.clip(min(h, wd) // 256, 1, 4))
+    small = resp if n == 1 else cv2.resize(np.asarray(resp, np.float32), (wd // n, h // n),
+                                           interpolation=cv2.INTER_AREA)
+    hs, ws = small.shape
+    r = small - small.mean()
+    F = np.fft.fftshift(np.fft.fft2(r * np.outer(np.hanning(hs), np.hanning(ws))))
+    mag = np.abs(F)
+    fy, fx = np.meshgrid(np.fft.fftshift(np.fft.fftfreq(hs, d=n)),
+                         np.fft.fftshift(np.fft.fftfreq(ws, d=n)), indexing="ij")
+    fr = np.hypot(fx, fy)
     mag[(fr > 1 / min_period) | (fr < 1 / max_period) | (fy < 0) | ((fy == 0) & (fx < 0))] = 0
     if mag.max() <= 0:
         return None
@@ -224,6 +232,7 @@ def periods_px(Hc, f):
 
 
 LENS_PARAMS = ("k1", "k2", "cx", "cy")
+STAGE_TOL_PX = 0.1  # a region-growing stage ends once a step moves no pixel this far
 CENTRE_PRIOR_PX = 30.0  # weak prior: distortion centre within ~30 px of the image centre
 
 
@@ -367,6 +376,8 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
                     "lines_a": int(len(np.unique(ia[fam_a]))),
                     "lines_b": int(len(np.unique(ib[fam_b]))),
                     "step": float(np.abs(step[:8]).max())}
+            if radius is not None and np.abs(J @ step).max() < STAGE_TOL_PX:
+                break  # a growing stage has only to land in the basin: the next refines
         if stage_free:  # the lens moved: every pixel's normalised position
             q = q_s if radius is None else _normalised(xs, K, lens)
     return Hc, _lens_K(K, lens), (float(lens[0]), float(lens[1])), info

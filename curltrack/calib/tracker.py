@@ -48,6 +48,11 @@ TURN_RETRIES_DEG = (4.0, -4.0, 8.0, -8.0)  # camera turns tried when the grid is
 MIN_FOUND_SNAP = 0.5
 
 
+def _origin(Hc):
+    """Lattice coordinates (cells) of the image centre (the normalised origin)."""
+    return Hc[:2, 2] / Hc[2, 2]
+
+
 def _retry_predictions(Hc_pred):
     """Predictions to try when the threads are not found near the motion prediction.
 
@@ -225,8 +230,7 @@ class GridTracker:
             Hc, info, obs = self._measure(image_bgr, Hc_pred, mask, motion, coarse=attempt)
             if info is None:
                 continue
-            moved = np.abs(apply_h(Hc, np.zeros((1, 2)))[0]
-                           - apply_h(Hc_pred, np.zeros((1, 2)))[0]) * periods_px(Hc, f)
+            moved = np.abs(_origin(Hc) - _origin(Hc_pred)) * periods_px(Hc, f)
             # without the coarse snap the profiles only see +-6 px around the prediction
             if attempt or (moved.max() < 4.0 and info["ok_fraction"] > 0.6):
                 break
@@ -244,7 +248,7 @@ class GridTracker:
             # locked onto something else than the lattice (e.g. after a sudden turn).
             return failed(f"grid not followed (a snap found only "
                           f"{100 * info['ok_fraction']:.0f} % of the expected threads)")
-        jump = apply_h(Hc, np.zeros((1, 2)))[0] - apply_h(Hc_pred, np.zeros((1, 2)))[0]
+        jump = _origin(Hc) - _origin(Hc_pred)
         n = self.calib.n_colors if self.calib.colors_resolved else 0
         # The colours are read when the index could have slipped (a coarse snap, a large
         # correction) and every COLOUR_CHECK_EVERY frames as a confirmation.
