@@ -414,6 +414,11 @@ def per_line_offsets(xs, w, Hc, K, dist, band_px: float = 3.0):
     return out
 
 
+def _n_distinct(v) -> int:
+    """Number of distinct values in a 1-d array."""
+    return int(np.count_nonzero(np.diff(np.sort(v)))) + (len(v) > 0)
+
+
 def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float = 2.0,
                q=None, tol_px: float = 0.01):
     """Refine ``Hc`` on thread points of known family (0/1) and thread index.
@@ -438,32 +443,32 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
     order = np.argsort(fam, kind="stable")
     row = fam[order].astype(np.intp)
     na = int(np.count_nonzero(row == 0))
-    x, y = q[order, 0], q[order, 1]
+    X = np.column_stack([q[order], np.ones(len(order))])  # (x, y, 1)
     io = idx[order].astype(float)
     w0 = w[order]
     parts = (slice(0, na), slice(na, None))
-    J = np.zeros((len(order), 8))
-    cols = np.where(row[:, None] == 0, np.arange(3), np.arange(3, 6))  # h0..h2 or h3..h5
-    rows = np.arange(len(order))[:, None]
+    onehot = np.zeros((len(order), 2, 1))
+    onehot[np.arange(len(order)), row] = 1.0
+    J = np.empty((len(order), 8))
+    ww = w0
     for it in range(iterations):
         p = np.asarray(periods_px(Hc, f))[row]
-        wq = Hc[2, 0] * x + Hc[2, 1] * y + Hc[2, 2]
-        val = (Hc[row, 0] * x + Hc[row, 1] * y + Hc[row, 2]) / wq
+        wq = X @ Hc[2]
+        val = np.einsum("ij,ij->i", Hc[row], X) / wq
         r = (val - io) * p
-        ww = w0.copy()
         # Tukey weights about each family's median residual (a common shift of a family
         # is the correction sought, not an outlier), scale from the MAD
+        u = np.empty_like(r)
         for part in parts:
             rp = r[part]
             if rp.size:
                 med = median(rp)
-                scale = max(clip_px, 4.5 * 1.4826 * median(np.abs(rp - med)))
-                ww[part] *= np.clip(1 - ((rp - med) / scale) ** 2, 0, None) ** 2
-        # d(residual)/d(h0..h7), analytic (as _h_jacobian)
+                u[part] = (rp - med) / max(clip_px, 4.5 * 1.4826 * median(np.abs(rp - med)))
+        ww = w0 * np.square(np.maximum(1.0 - u * u, 0.0))
+        # d(residual)/d(h0..h7), analytic (as _h_jacobian): h0..h2 or h3..h5 by family
         pw = p / wq
-        J[rows, cols] = np.stack([pw * x, pw * y, pw], axis=1)
-        J[:, 6] = -pw * val * x
-        J[:, 7] = -pw * val * y
+        J[:, :6] = (onehot * (pw[:, None] * X)[:, None, :]).reshape(-1, 6)
+        J[:, 6:] = -(pw * val)[:, None] * X[:, :2]
         JW = J * ww[:, None]
         A = J.T @ JW
         A += 1e-9 * np.trace(A) * np.eye(8)
@@ -478,7 +483,7 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
     cov = np.linalg.inv(A) * chi2 / max(int(used.sum()) - 8, 1)
     info = {"rms_px": float(np.sqrt(chi2 / max(ww.sum(), 1e-12))),
             "n_a": int(used[:na].sum()), "n_b": int(used[na:].sum()),
-            "lines_a": int(len(np.unique(io[:na][used[:na]]))),
-            "lines_b": int(len(np.unique(io[na:][used[na:]]))),
+            "lines_a": _n_distinct(io[:na][used[:na]]),
+            "lines_b": _n_distinct(io[na:][used[na:]]),
             "sigma_px": float(np.sqrt(cov[2, 2] * pa ** 2 + cov[5, 5] * pb ** 2))}
     return Hc, info

@@ -126,7 +126,7 @@ class ThreadPoints:
 def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0,
                    mask=None, margin_px: float = 3.0,
                    gap_px=(4.0, 4.0), blur_px=(0.0, 0.0), seg_px: float = 40.0,
-                   seg_every: int = 1):
+                   max_points: int | None = None):
     """Sub-pixel thread points of a frame near the predicted lattice ``Hc``.
 
     Parameters
@@ -153,9 +153,10 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     seg_px : float
         Length (px) of thread over which consecutive profiles are averaged into one
         point.
-    seg_every : int
-        Sample only every ``seg_every``-th segment of each thread: fewer points, each as
-        good (ignored for threads averaged whole).
+    max_points : int, optional
+        About the largest number of points wanted: when the frame holds more segments
+        of thread than this, only an evenly spread fraction of each thread's segments
+        is sampled (fewer points, each as good; threads averaged whole are all kept).
     mask : (H, W) uint8, optional
         Nonzero = ignore.
 
@@ -181,14 +182,22 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     # crossing threads), ordered by family, thread, position along the thread.
     whole = np.asarray(blur_px) >= 6.0
     seg_cells = np.where(whole, 1e6, seg_px) / p_cell[::-1]  # (along each family)
+    keep_frac = 1.0
+    if max_points:
+        # segments in view ~ frame area (cells^2) x segments per cell^2 of each family
+        x, y = ab_edge[:, 0], ab_edge[:, 1]
+        area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+        keep_frac = min(1.0, max_points / max(area * np.sum(1.0 / seg_cells), 1.0))
     pts, fams = [], []
     for fam in (0, 1):
         other = 1 - fam
         lines = np.arange(np.ceil(lo[fam]), np.floor(hi[fam]) + 1)
         along = np.arange(lo[other], hi[other], step_px / p_cell[other])
         keep = np.abs(along - np.round(along)) > gap_px[other] / p_cell[other]
-        if seg_every > 1 and not whole[fam]:
-            keep &= np.floor(along / seg_cells[fam]) % seg_every == 0
+        if keep_frac < 1.0 and not whole[fam]:
+            # every segment whose index crosses a multiple of 1/keep_frac: evenly spread
+            seg = np.floor(along / seg_cells[fam])
+            keep &= np.floor((seg + 1) * keep_frac) > np.floor(seg * keep_frac)
         along = along[keep]
         ab = np.empty((len(lines) * len(along), 2))
         ab[:, fam] = np.repeat(lines, len(along))
