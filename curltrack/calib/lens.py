@@ -68,9 +68,29 @@ def undistort(pts_px, K, dist, iterations: int = 6) -> np.ndarray:
 
 
 def apply_h(H, pts) -> np.ndarray:
-    """Apply a 3x3 homography to (N, 2) points."""
+    """Apply a 3x3 homography to (N, 2) points (any leading shape).
+
+    Points on the homography's horizon (w = 0) come out infinite or NaN.
+    """
     p = np.asarray(pts, float)
+    if p.ndim == 2 and len(p) >= _CV_MIN_POINTS:
+        import cv2
+
+        out = cv2.perspectiveTransform(p.reshape(-1, 1, 2), np.asarray(H, float))
+        out = out.reshape(-1, 2)
+        # (OpenCV writes 0 where |w| < FLT_EPSILON; say "no point" there, as below)
+        w = p @ H[2, :2] + H[2, 2]
+        horizon = np.abs(w) < 1.2e-7
+        if horizon.any():
+            out[horizon] = (np.array([H[0, 0], H[1, 0]]) * p[horizon, :1]
+                            + np.array([H[0, 1], H[1, 1]]) * p[horizon, 1:]
+                            + H[:2, 2]) / w[horizon, None]
+        return out
     x, y = p[..., 0], p[..., 1]
     w = H[2, 0] * x + H[2, 1] * y + H[2, 2]
     return np.stack([(H[0, 0] * x + H[0, 1] * y + H[0, 2]) / w,
                      (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / w], axis=-1)
+
+
+#: From this many points on, :func:`apply_h` uses OpenCV (fewer numpy calls).
+_CV_MIN_POINTS = 32
