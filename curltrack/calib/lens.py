@@ -26,13 +26,14 @@ def camera_matrix(width: int, height: int, f: float | None = None) -> np.ndarray
 
 def distort(pts_px, K, dist) -> np.ndarray:
     """Undistorted pixel coordinates (N, 2) -> distorted (observed) pixel coordinates."""
-    p = np.asarray(pts_px, float)
+    return project((np.asarray(pts_px, float) - K[:2, 2]) / K[0, 0], K, dist)
+
+
+def project(q, K, dist) -> np.ndarray:
+    """Undistorted normalised coordinates ``(x_u - c) / f`` (N, 2) -> observed pixels."""
     k1, k2 = (tuple(dist) + (0.0, 0.0))[:2]
-    f, cx, cy = K[0, 0], K[0, 2], K[1, 2]
-    qx, qy = (p[..., 0] - cx) / f, (p[..., 1] - cy) / f
-    r2 = qx * qx + qy * qy
-    s = f * (1.0 + r2 * (k1 + k2 * r2))
-    return np.stack([cx + qx * s, cy + qy * s], axis=-1)
+    r2 = np.einsum("...i,...i->...", q, q)
+    return K[:2, 2] + q * (K[0, 0] * (1.0 + r2 * (k1 + k2 * r2)))[..., None]
 
 
 def undistort(pts_px, K, dist, iterations: int = 6) -> np.ndarray:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._stats import median
-from .lens import apply_h, distort, undistort
+from .lens import apply_h, project, undistort
 
 
 BOX = 0.25
@@ -47,19 +47,20 @@ def _frame_edge(w, h, K_flat, dist):
     return q
 
 
-def _group_rows(a, starts):
-    """Sums of consecutive rows of ``a`` (N, S) from each of ``starts`` to the next,
-    as a C-contiguous float32 (G, S) array."""
-    cs = np.empty((a.shape[0] + 1, a.shape[1]))
-    cs[0] = 0.0
-    np.cumsum(a, axis=0, out=cs[1:])
-    return (cs[np.r_[starts[1:], len(a)]] - cs[starts]).astype(np.float32)
+def _group_columns(a, starts):
+    """Sums of consecutive columns of ``a`` (S, N) from each of ``starts`` to the next,
+    transposed: a C-contiguous float32 (G, S) array."""
+    cs = np.empty((a.shape[0], a.shape[1] + 1))
+    cs[:, 0] = 0.0
+    np.cumsum(a, axis=1, out=cs[:, 1:])
+    return np.ascontiguousarray((cs[:, np.r_[starts[1:], a.shape[1]]] - cs[:, starts]).T,
+                                dtype=np.float32)
 
 
 def _lattice_to_px(Hc_inv, K, dist, ab):
     """Lattice coordinates (cells) -> (undistorted normalised q, observed px)."""
     q = apply_h(Hc_inv, ab)
-    return q, distort(K[:2, 2] + K[0, 0] * q, K, dist)
+    return q, project(q, K, dist)
 
 
 def _across(Hc_inv, K, dist, ab, fam, cells=0.02):
@@ -77,7 +78,9 @@ def _across(Hc_inv, K, dist, ab, fam, cells=0.02):
     q, px = q2[:n], px2[:n]
     d = px2[n:] - px
     norm = np.hypot(d[:, 0], d[:, 1])[:, None]
-    finite = np.isfinite(px).all(axis=1) & np.isfinite(norm[:, 0]) & (norm[:, 0] > 0)
+    finite = np.isfinite(norm[:, 0]) & (norm[:, 0] > 0)  # (a point that did not map, too)
+    if finite.all():
+        return q, px, d / norm, (q2[n:] - q) / norm, finite
     norm = np.where(finite[:, None], norm, 1.0)
     u = np.where(finite[:, None], d / norm, 0.0)
     dq = np.where(finite[:, None], (q2[n:] - q) / norm, 0.0)
@@ -230,10 +233,11 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     # Consecutive profiles of a thread are averaged over segments (longer when blurred:
     # a smeared thread is faint in any one profile but straight over a long stretch).
     # The profiles come ordered by family, thread and position along it.
-    other = 1 - fam
-    along = ab[np.arange(len(ab)), other]
-    key = np.stack([fam, ab[np.arange(len(ab)), fam], np.floor(along / seg_cells[fam])], axis=1)
-    starts = np.flatnonzero(np.r_[True, np.any(key[1:] != key[:-1], axis=1)])
+    members = np.arange(len(ab))
+    line, along = ab[members, fam], ab[members, 1 - fam]
+    # (|line| < 1000 cells and segment indices are small integers: one exact float key)
+    key = (fam * 4096.0 + line) * 2.0 ** 24 + np.floor(along / seg_cells[fam])
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     counts = np.diff(np.r_[starts, len(key)])
     inv_counts = (1.0 / counts).astype(np.float32)[:, None]
     # The thread signal: the profile less the straight line through its two ends.
@@ -241,30 +245,33 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         pf = prof.astype(np.float32)
         base = pf[:2].mean(axis=0)
         diff = pf - base - (pf[-2:].mean(axis=0) - base) * frac[:, None, None]
-        sig = _group_rows(np.sqrt(np.einsum("snc,snc->sn", diff, diff)).T, starts) * inv_counts
+        sig = _group_columns(np.sqrt(np.einsum("snc,snc->sn", diff, diff)), starts) * inv_counts
     else:
         # One linear projection on the mean contrast direction of the thread colours for
         # finding the threads (the colours are told apart later, at the peaks only);
         # linear, so the members are averaged first.
         d = model.directions.mean(axis=0)
         raw = cv2.transform(prof.astype(np.float32), (d / np.linalg.norm(d))[None])
-        sig = _group_rows(raw.T, starts) * inv_counts
+        sig = _group_columns(raw, starts) * inv_counts
         b0 = 0.5 * (sig[:, 0] + sig[:, 1])
         sig -= b0[:, None] + (0.5 * (sig[:, -1] + sig[:, -2]) - b0)[:, None] * frac
     # The averaged profile measures the thread's offset at the members' mean position:
     # that point of the predicted thread (a straight line in lattice coordinates).
-    ab_g = np.add.reduceat(ab, starts, axis=0) / counts[:, None]
-    fam, t = fam[starts], t[starts]
+    cum = np.r_[0.0, np.cumsum(along)]
+    fam, t, line = fam[starts], t[starts], line[starts]
+    rows = np.arange(len(starts))
+    ab_g = np.empty((len(starts), 2))
+    ab_g[rows, fam] = line
+    ab_g[rows, 1 - fam] = (cum[starts + counts] - cum[starts]) / counts
     q_g, centre, dirv, dq, _ = _across(Hc_inv, K, dist, ab_g, fam)
     # Find the thread on a copy smoothed by the blur length (merges the ghosts of a
     # smeared thread), take the centroid of the unsmoothed signal over the run found.
     det = sig.copy()
     for j in (0, 1):
         k = int(round(BOX * blur_px[j] * (n_s - 1) / (2.0 * half_px[j])))
-        rows = fam == j
-        if k >= 2 and rows.any():
-            det[rows] = _box(sig[rows], k)
-    rows = np.arange(len(det))
+        fam_j = fam == j
+        if k >= 2 and fam_j.any():
+            det[fam_j] = _box(sig[fam_j], k)
     kpk = det.argmax(axis=1)
     peak = det[rows, kpk]
     # the contiguous run above 30 % of the peak that contains the peak
@@ -304,8 +311,8 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
             c = np.add.reduceat((pk - ends) @ model.directions.T.astype(np.float32), starts)
             return c[sel]
 
-    found = [float(np.mean(sel[fam == j])) if np.any(fam == j) else 0.0 for j in (0, 1)]
+    found = np.bincount(fam, sel, minlength=2) / np.maximum(np.bincount(fam, minlength=2), 1)
     return ThreadPoints(xy=(centre + off[:, None] * dirv)[sel], q=(q_g + off[:, None] * dq)[sel],
-                        w=(s_sum * counts)[sel], fam=fam[sel], idx=ab_g[rows, fam][sel].round().astype(int),
-                        noise=float(np.max(noise)), n_profiles=int(len(sel)), found=found,
-                        _colour_of=colour_of)
+                        w=(s_sum * counts)[sel], fam=fam[sel], idx=line[sel].astype(int),
+                        noise=float(np.max(noise)), n_profiles=int(len(sel)),
+                        found=found.tolist(), _colour_of=colour_of)
