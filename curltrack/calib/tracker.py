@@ -35,10 +35,11 @@ AMBIGUOUS_CELLS = 0.35  # unexplained jump (cells) beyond which the index is not
 PROFILE_STEP_PX = 18.0  # spacing of the cross profiles along each thread (px), at least
 PROFILES_PER_CELL = 2.5  # at most this many profiles per cell along a thread: a sharper
 # (larger) view measures each profile as well in px, hence better in metres
-#: Thread points (averaged 40 px stretches of thread) measured per frame, about: the
-#: homography is as good from ~300 well-spread points as from all (measured on rendered
-#: set-ups with 300-900), and the profiles are most of the per-frame cost.
-MAX_THREAD_POINTS = 320
+#: Cross profiles sampled per frame, about (two per point on a thread, or many along a
+#: blurred thread averaged whole): the homography is as good from ~300 well-spread
+#: points as from all (measured on rendered set-ups with 300-900), and the profiles
+#: are most of the per-frame cost.
+MAX_PROFILES = 640
 COLOUR_CHECK_EVERY = 10  # frames between routine checks of the thread colour sequence
 COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap
 SHUTTER = 0.5  # assumed exposure (fraction of a frame) for the motion-blur filter
@@ -188,7 +189,7 @@ class GridTracker:
         step = max(PROFILE_STEP_PX, min(periods) / PROFILES_PER_CELL)
         obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model, half,
                              step_px=step, mask=mask, gap_px=gap,
-                             blur_px=SHUTTER * blur, max_points=MAX_THREAD_POINTS)
+                             blur_px=SHUTTER * blur, max_profiles=MAX_PROFILES)
         if obs is None or np.sum(obs.fam == 0) < 10 or np.sum(obs.fam == 1) < 10:
             return Hc, None, obs
         Hc, info = fit_points(obs.xy, obs.w, obs.fam, obs.idx, Hc, self.K, self.dist,
