@@ -134,7 +134,9 @@ class GridTracker:
         c = calib.K[:2, 2]
         self._ref = c + np.array([[-0.25, -0.25], [0.25, -0.25], [0.25, 0.25],
                                   [-0.25, 0.25]]) * (w, h)
-        self._history: list[tuple[int, np.ndarray]] = [(None, calib.H)]
+        # trusted poses: (frame, H, the reference points mapped to the ice by H)
+        self._history: list[tuple] = [(None, calib.H, apply_h(calib.H, self._ref))]
+        self._centre_h = np.append(c, 1.0)  # principal point, homogeneous
         self._pred_err_px = 0.0  # running size of the prediction error (px)
 
     # -- prediction ------------------------------------------------------------------
@@ -143,20 +145,19 @@ class GridTracker:
         hist = self._history
         if len(hist) < 2 or hist[-2][0] is None:
             return hist[-1][1]
-        (i0, H0), (i1, H1) = hist[-2], hist[-1]
+        (i0, _, P0), (i1, H1, P1) = hist[-2], hist[-1]
         import cv2
 
-        P0, P1 = apply_h(H0, self._ref), apply_h(H1, self._ref)
         P = P1 + (P1 - P0) * (index - i1) / max(i1 - i0, 1)
         return cv2.getPerspectiveTransform(self._ref.astype(np.float32),
                                            P.astype(np.float32)).astype(float)
 
     def _motion_px(self, H_pred, index) -> np.ndarray:
         """Predicted image motion (px per frame) of the ice at the image centre."""
-        c = self.K[:2, 2][None]
-        i1, prev = self._history[-1]
+        i1, prev, _ = self._history[-1]
         gap = 1 if i1 is None else max(index - i1, 1)
-        return (apply_h(np.linalg.inv(H_pred), apply_h(prev, c)) - c)[0] / gap
+        x = np.linalg.solve(H_pred, prev @ self._centre_h)  # (homogeneous image point)
+        return (x[:2] / x[2] - self._centre_h[:2]) / gap
 
     # -- per frame -------------------------------------------------------------------
     def _measure(self, image_bgr, Hc_pred, mask, motion, coarse: bool):
@@ -280,7 +281,7 @@ class GridTracker:
             return pose
         err = float(np.hypot(*(np.asarray(jump) * (pa, pb))))
         self._pred_err_px = 0.5 * self._pred_err_px + 0.5 * err
-        self._history = (self._history + [(index, H)])[-2:]
+        self._history = (self._history + [(index, H, apply_h(H, self._ref))])[-2:]
         return pose
 
     def _colour_correction(self, obs, jump, n):
