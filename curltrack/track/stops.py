@@ -97,6 +97,36 @@ def _reduced_residual(t_F, lam, tw, Qw, quad, sigma):
     return np.concatenate(out) / sigma
 
 
+def _grid_cost(tF_grid, lam_grid, tw, Qw, quad, sigma):
+    """Chi-square of :func:`_reduced_residual` on every (t_F, lambda) of a grid, at once.
+
+    The linear parameters are solved from the normal equations of all grid points in
+    one batch (the columns are centred first, which the constant term absorbs);
+    ``(len(tF_grid), len(lam_grid))``.
+    """
+    tau = np.maximum(tF_grid[:, None] - tw[None, :], 0.0)  # (T, n)
+    pw = tau[:, None, :] ** lam_grid[None, :, None]  # (T, L, n)
+    shape = pw.shape
+    total = np.zeros(shape[:2])
+    for j in range(Qw.shape[1]):
+        qj = Qw[:, j] - Qw[:, j].mean()
+        cols = [np.ones(shape), -pw]
+        if quad and j > 0:
+            cols.append(np.broadcast_to(-(tau ** 2)[:, None, :], shape))
+        A = np.stack(cols, axis=-1)  # (T, L, n, k)
+        AtA = np.einsum("tlnk,tlnm->tlkm", A, A)
+        Atq = np.einsum("tlnk,n->tlk", A, qj)
+        # Columns scaled to unit norm (tau^lambda is tiny for t_F near the window's
+        # start); an all-zero column (t_F before the window) gets a zero coefficient.
+        norm = np.sqrt(np.einsum("tlkk->tlk", AtA))
+        d = np.divide(1.0, norm, out=np.zeros_like(norm), where=norm > 0)
+        AtA = AtA * d[..., :, None] * d[..., None, :] + 1e-12 * np.eye(len(cols))
+        Atq = Atq * d
+        coef = np.linalg.solve(AtA, Atq[..., None])[..., 0]
+        total += qj @ qj - np.einsum("tlk,tlk->tl", Atq, coef)
+    return np.maximum(total, 0.0) / sigma ** 2
+
+
 def _tail_scatter(t: np.ndarray, q: np.ndarray, n: int = 12) -> float:
     """Robust sigma of the last ``n`` points about a straight line (0 if too few)."""
     if q.size < n:
@@ -169,11 +199,7 @@ def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | N
     tF_grid = np.arange(t[i_c] - 3 * dt, min(t[-1], t[i_c] + 40 * dt) + dt / 4, dt / 2)
     lam_grid = np.linspace(1.05, 4.0, 24)
 
-    def cost(tF, lam):
-        r = _reduced_residual(tF, lam, tw, Qw, quad, sigma)
-        return float(r @ r)
-
-    grid = np.array([[cost(tF, lam) for lam in lam_grid] for tF in tF_grid])
+    grid = _grid_cost(tF_grid, lam_grid, tw, Qw, quad, sigma)
     i, j = np.unravel_index(np.argmin(grid), grid.shape)
     lo, hi = [tw[0] + dt, 1.0], [t[-1] + 5 * dt, 4.0]
     p0 = np.clip([tF_grid[i], lam_grid[j]], np.array(lo) + 1e-9, np.array(hi) - 1e-9)
