@@ -106,24 +106,34 @@ def _grid_cost(tF_grid, lam_grid, tw, Qw, quad, sigma):
     """
     tau = np.maximum(tF_grid[:, None] - tw[None, :], 0.0)  # (T, n)
     pw = tau[:, None, :] ** lam_grid[None, :, None]  # (T, L, n)
-    shape = pw.shape
-    total = np.zeros(shape[:2])
+    tau2 = tau * tau
+    # Gram matrix of the columns 1, -tau^lambda (and -tau^2), from their sums
+    s_p = pw.sum(axis=-1)
+    s_pp = np.einsum("tln,tln->tl", pw, pw)
+    s_pt2 = np.einsum("tln,tn->tl", pw, tau2)
+    s_t2 = np.broadcast_to(tau2.sum(axis=-1)[:, None], s_p.shape)
+    s_t4 = np.broadcast_to((tau2 * tau2).sum(axis=-1)[:, None], s_p.shape)
+    n = np.full(s_p.shape, float(len(tw)))
+    total = np.zeros(s_p.shape)
     for j in range(Qw.shape[1]):
-        qj = Qw[:, j] - Qw[:, j].mean()
-        cols = [np.ones(shape), -pw]
+        qj = Qw[:, j] - Qw[:, j].mean()  # (so that the constant's sum with q is 0)
+        s_pq = pw @ qj
         if quad and j > 0:
-            cols.append(np.broadcast_to(-(tau ** 2)[:, None, :], shape))
-        A = np.stack(cols, axis=-1)  # (T, L, n, k)
-        AtA = np.einsum("tlnk,tlnm->tlkm", A, A)
-        Atq = np.einsum("tlnk,n->tlk", A, qj)
+            s_t2q = np.broadcast_to((tau2 @ qj)[:, None], s_p.shape)
+            G = np.stack([np.stack([n, -s_p, -s_t2], -1), np.stack([-s_p, s_pp, s_pt2], -1),
+                          np.stack([-s_t2, s_pt2, s_t4], -1)], -2)
+            b = np.stack([np.zeros_like(s_p), -s_pq, -s_t2q], -1)
+        else:
+            G = np.stack([np.stack([n, -s_p], -1), np.stack([-s_p, s_pp], -1)], -2)
+            b = np.stack([np.zeros_like(s_p), -s_pq], -1)
         # Columns scaled to unit norm (tau^lambda is tiny for t_F near the window's
         # start); an all-zero column (t_F before the window) gets a zero coefficient.
-        norm = np.sqrt(np.einsum("tlkk->tlk", AtA))
+        norm = np.sqrt(np.einsum("tlkk->tlk", G))
         d = np.divide(1.0, norm, out=np.zeros_like(norm), where=norm > 0)
-        AtA = AtA * d[..., :, None] * d[..., None, :] + 1e-12 * np.eye(len(cols))
-        Atq = Atq * d
-        coef = np.linalg.solve(AtA, Atq[..., None])[..., 0]
-        total += qj @ qj - np.einsum("tlk,tlk->tl", Atq, coef)
+        G = G * d[..., :, None] * d[..., None, :] + 1e-12 * np.eye(G.shape[-1])
+        b = b * d
+        coef = np.linalg.solve(G, b[..., None])[..., 0]
+        total += qj @ qj - np.einsum("tlk,tlk->tl", b, coef)
     return np.maximum(total, 0.0) / sigma ** 2
 
 
