@@ -45,11 +45,13 @@ _LOWRES_FIRST_MIN_PX = 720
 
 
 def lab_of_rgb(rgb) -> np.ndarray:
-    """(R, G, B) 0-255 -> OpenCV 8-bit Lab triple (float), the space used for classifying."""
+    """(R, G, B) 0-255 -> OpenCV 8-bit Lab (float), the space used for classifying;
+    any leading shape, ``(..., 3)``."""
     import cv2
 
-    px = np.asarray(rgb, np.uint8).reshape(1, 1, 3)[:, :, ::-1]
-    return cv2.cvtColor(np.ascontiguousarray(px), cv2.COLOR_BGR2Lab).reshape(3).astype(float)
+    rgb = np.asarray(rgb, np.uint8)
+    px = np.ascontiguousarray(rgb.reshape(1, -1, 3)[:, :, ::-1])
+    return cv2.cvtColor(px, cv2.COLOR_BGR2Lab).reshape(rgb.shape).astype(float)
 
 
 def _weigh(lab: np.ndarray) -> np.ndarray:
@@ -114,15 +116,17 @@ class MarkerDetector:
         uniq, self.class_of = np.unique(self.ref_lab.round(1), axis=0, return_inverse=True)
         self.class_of = self.class_of.ravel()
         self.n_classes = len(uniq)
+        # class means of the (adapting) marker colours as one product: _class_mean @ lab
+        member = self.class_of[None, :] == np.arange(self.n_classes)[:, None]
+        self._class_mean = member / member.sum(axis=1, keepdims=True)
         self.thread_lab = np.array([lab_of_rgb(parse_color(c)) for c in self.rig.grid_colors]
                                    ).reshape(-1, 3)
 
     # --- classification --------------------------------------------------------------
     def _class_masks(self, lab: np.ndarray, bg_lab: np.ndarray) -> list[np.ndarray]:
         """One boolean mask per marker colour class (nearest-prototype rule)."""
-        class_lab = np.array([self.colors_lab[self.class_of == c].mean(axis=0)
-                              for c in range(self.n_classes)])
-        protos = _weigh(np.vstack([class_lab, self.thread_lab, bg_lab[None]]))
+        protos = _weigh(np.vstack([self._class_mean @ self.colors_lab, self.thread_lab,
+                                   bg_lab[None]]))
         w = _weigh(lab).reshape(-1, 3)
         # squared distances to every prototype, |w|^2 - 2 w.p + |p|^2, as one product
         d = ((w * w).sum(axis=1)[:, None] - 2.0 * (w @ protos.T)
@@ -137,10 +141,8 @@ class MarkerDetector:
     def _is_class(self, obs_lab, bg_lab, i) -> bool:
         """The nearest-prototype rule of :meth:`_class_masks` for one colour."""
         c = self.class_of[i]
-        class_lab = self.colors_lab[self.class_of == c].mean(axis=0)
-        others = [self.colors_lab[self.class_of == k].mean(axis=0)
-                  for k in range(self.n_classes) if k != c]
-        protos = _weigh(np.vstack([class_lab[None], *[o[None] for o in others],
+        order = np.r_[c, np.delete(np.arange(self.n_classes), c)]  # its class first
+        protos = _weigh(np.vstack([(self._class_mean @ self.colors_lab)[order],
                                    self.thread_lab, bg_lab[None]]))
         d = np.sum((protos - _weigh(obs_lab)) ** 2, axis=1)
         return bool(np.argmin(d) == 0 and d[0] < 0.25 * np.sum((protos[0] - protos[-1]) ** 2))
@@ -189,7 +191,7 @@ class MarkerDetector:
             if abs(d_now - d_pred) > 0.03 * d_pred + 1.0:
                 self.colors_lab = saved
                 return None
-        self.area_px = 0.9 * self.area_px + 0.1 * float(np.median(area))
+        self.area_px = 0.9 * self.area_px + 0.1 * float(median(area))
         return MarkerFrame(xy, sig, area, con, "")
 
     def detect(self, image_bgr: np.ndarray, predicted: np.ndarray | None = None,
@@ -359,7 +361,8 @@ class MarkerDetector:
         if xb - xa < 3 or yb - ya < 3:
             return None
         win = image_bgr[ya:yb, xa:xb].astype(np.float32)[:, :, ::-1]  # RGB
-        yy, xx = np.mgrid[ya:yb, xa:xb].astype(float)
+        yy, xx = np.ogrid[ya:yb, xa:xb]  # (broadcast: (h, 1) and (1, w))
+        yy, xx = yy.astype(float), xx.astype(float)
         rad = np.hypot(xx - cx, yy - cy)
         ring = (rad > R_in) & (rad <= R_out)
         core = rad <= 0.6 * r
@@ -398,8 +401,7 @@ class MarkerDetector:
         inside = np.hypot(xx - cx, yy - cy) <= R_in
         r2 = ((xx - cx) ** 2 + (yy - cy) ** 2)[inside].sum()
         sigma = float(sigma_w * np.sqrt(r2 / 2.0) / sw)
-        obs_lab = lab_of_rgb(np.clip(col, 0, 255))
-        bg_lab = lab_of_rgb(np.clip(bg, 0, 255))
+        obs_lab, bg_lab = lab_of_rgb(np.clip([col, bg], 0, 255))
         if check_class and not self._is_class(obs_lab, bg_lab, i):
             return None
         # Adapt the colour model to what the camera shows (slowly, and only when sure).
