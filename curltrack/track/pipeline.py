@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import TrackingError
 from ..rig import Rig
 from .markers import MarkerDetector
+from .parallax import similarity_fit
 
 __all__ = ["track_video", "FrameRecord"]
 
@@ -54,6 +55,7 @@ class _Follower:
         self.det, self.rig = det, rig
         self.hist: list[tuple[int, np.ndarray]] = []  # (frame, (M, 2) px)
         self.lost = 0
+        self._mask = None  # reused by mask(): (array, the slice last drawn on)
 
     def predicted(self, frame: int):
         if not self.hist:
@@ -71,15 +73,9 @@ class _Follower:
         if p is None:
             return None
         L = self.det.layout_m
-        sep_px = np.hypot(*(p[0] - p[1]))
-        sep_m = np.hypot(*(L[0] - L[1]))
-        px_per_m = sep_px / sep_m
+        px_per_m = np.hypot(*(p[0] - p[1])) / np.hypot(*(L[0] - L[1]))
         # rock axis in the image: the layout's origin under the image similarity
-        a = (L - L.mean(0))
-        b = (p - p.mean(0))
-        z = np.vdot(a[:, 0] + 1j * a[:, 1], b[:, 0] + 1j * b[:, 1]) / np.sum(a ** 2)
-        c = p.mean(0) - np.array([(z * complex(*L.mean(0))).real,
-                                  (z * complex(*L.mean(0))).imag])
+        c, _, _, _ = similarity_fit(L, p)
         return c, 0.5 * self.rig.rock_diameter_m * px_per_m
 
     def detect(self, image, frame):
@@ -111,15 +107,28 @@ class _Follower:
         return mf
 
     def mask(self, shape, frame):
-        """uint8 mask (nonzero = ignore) of the rock and its surroundings for the grid."""
+        """uint8 mask (nonzero = ignore) of the rock and its surroundings for the grid.
+
+        The same array every frame (only the last disc is cleared): valid until the
+        next call.
+        """
         import cv2
 
-        m = np.zeros(shape[:2], np.uint8)
+        if self._mask is None or self._mask[0].shape != tuple(shape[:2]):
+            self._mask = (np.zeros(shape[:2], np.uint8), None)
+        m, drawn = self._mask
+        if drawn is not None:
+            m[drawn] = 0
         rp = self.rock_px(frame)
+        drawn = None
         if rp is not None:
             (cx, cy), r = rp
             # the rock's side shows too under parallax: generous margin
-            cv2.circle(m, (int(round(cx)), int(round(cy))), int(np.ceil(1.35 * r + 8)), 255, -1)
+            x, y, rad = int(round(cx)), int(round(cy)), int(np.ceil(1.35 * r + 8))
+            cv2.circle(m, (x, y), rad, 255, -1)
+            drawn = (slice(max(y - rad, 0), max(y + rad + 1, 0)),
+                     slice(max(x - rad, 0), max(x + rad + 1, 0)))
+        self._mask = (m, drawn)
         return m
 
 
@@ -146,7 +155,6 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
         ``info`` holds the calibration (``calib``) and the focal/principal point data.
     """
     from ..calib import GridTracker
-    from .parallax import similarity_fit
 
     det = MarkerDetector(rig)
     fol = _Follower(det, rig)
