@@ -29,7 +29,7 @@ from ..errors import TrackingError
 from .grid import Calibration, PlaneMap, cells_from_metric, colour_phase, metric_from_cells
 from .lattice import fit_points, periods_px
 from .profiles import sample_threads
-from .lens import apply_h
+from .lens import apply_h, undistort
 
 AMBIGUOUS_CELLS = 0.35  # unexplained jump (cells) beyond which the index is not trusted
 PROFILE_STEP_PX = 18.0  # spacing of the cross profiles along each thread (px), at least
@@ -42,9 +42,14 @@ PROFILES_PER_CELL = 2.5  # at most this many profiles per cell along a thread: a
 MAX_PROFILES = 640
 COLOUR_CHECK_EVERY = 10  # frames between routine checks of the thread colour sequence
 COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap
+FINE_HALF_PX = 5.0  # half-length of the fine profiles before blur (px): thread + prediction error
 SHUTTER = 0.5  # assumed exposure (fraction of a frame) for the motion-blur filter
 
 
+#: Largest move (cells) of the motion prediction by an anchor (the rock's markers): a
+#: shaking hand moves the view by a few px to ~0.2 cell per frame; a larger move would
+#: rather be a wrong anchor, and the cell index must not rest on it.
+ANCHOR_MAX_CELLS = 0.3
 TURN_RETRIES_DEG = (4.0, -4.0, 8.0, -8.0)  # camera turns tried when the grid is lost
 #: A coarse snap is trusted only when at least this fraction of its profiles (in each
 #: family) found a thread: right snaps find >= 0.9, snaps onto the wrong lattice
@@ -152,6 +157,15 @@ class GridTracker:
         return cv2.getPerspectiveTransform(self._ref.astype(np.float32),
                                            P.astype(np.float32)).astype(float)
 
+    def _anchored(self, H_pred, px, ice_pred) -> np.ndarray:
+        """``H_pred`` moved on the ice so that it maps ``px`` onto ``ice_pred`` (on
+        average), or unchanged when that move is large or not finite."""
+        seen = apply_h(H_pred, undistort(np.asarray(px, float), self.K, self.dist))
+        d = np.mean(np.asarray(ice_pred, float) - seen, axis=0)
+        if not np.all(np.isfinite(d)) or np.max(np.abs(d) / (self.sx, self.sy)) > ANCHOR_MAX_CELLS:
+            return H_pred
+        return np.array([[1.0, 0.0, d[0]], [0.0, 1.0, d[1]], [0.0, 0.0, 1.0]]) @ H_pred
+
     def _motion_px(self, H_pred, index) -> np.ndarray:
         """Predicted image motion (px per frame) of the ice at the image centre."""
         i1, prev, _ = self._history[-1]
@@ -184,7 +198,7 @@ class GridTracker:
         # Profile half-lengths: prediction error plus motion blur across the threads.
         # (the smear of a thread is shutter x motion long: +-0.25 x motion for a half-open
         # shutter; 0.3 leaves room for a longer exposure)
-        base = 5.0 if coarse else 6.0
+        base = 5.0 if coarse else FINE_HALF_PX
         periods = periods_px(Hc, f)
         half = [min(base + 0.3 * blur[j], 0.4 * p) for j, p in enumerate(periods)]
         step = max(PROFILE_STEP_PX, min(periods) / PROFILES_PER_CELL)
@@ -198,7 +212,7 @@ class GridTracker:
         info["ok_fraction"] = min(obs.found)
         return Hc, info, obs
 
-    def update(self, image_bgr, index: int, mask=None) -> GridPose:
+    def update(self, image_bgr, index: int, mask=None, anchor=None) -> GridPose:
         """Measure the lattice in one frame.
 
         Parameters
@@ -208,6 +222,12 @@ class GridTracker:
             Frame index (frames must come in increasing order; gaps are allowed).
         mask : (H, W) uint8, optional
             Nonzero = ignore (the rock disc and its surroundings, a broom).
+        anchor : ((M, 2), (M, 2)) arrays, optional
+            Points seen in this frame (observed px) and where they are predicted on the
+            ice (lattice-frame m): the rock's markers, whose motion on the ice is smooth
+            even when the camera's is not.  The motion prediction is moved so that it
+            maps the one onto the other (by less than ``ANCHOR_MAX_CELLS``, else the
+            anchor is ignored), which follows a shaking camera without a coarse search.
 
         Returns
         -------
@@ -223,6 +243,8 @@ class GridTracker:
                                 f"{self.calib.width}x{self.calib.height} BGR",
                                 where=f"frame {index}")
         H_pred = self._predict(index)
+        if anchor is not None:
+            H_pred = self._anchored(H_pred, *anchor)
         Hc_pred = cells_from_metric(H_pred, K, self.sx, self.sy)
 
         def failed(msg):
@@ -236,8 +258,8 @@ class GridTracker:
             if info is None:
                 continue
             moved = np.abs(_origin(Hc) - _origin(Hc_pred)) * periods_px(Hc, f)
-            # without the coarse snap the profiles only see +-6 px around the prediction
-            if attempt or (moved.max() < 4.0 and info["ok_fraction"] > 0.6):
+            # without the coarse snap the profiles only see +-FINE_HALF_PX around the prediction
+            if attempt or (moved.max() < FINE_HALF_PX - 2.0 and info["ok_fraction"] > 0.6):
                 break
         if info is None:
             for retry in _retry_predictions(Hc_pred):

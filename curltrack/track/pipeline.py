@@ -132,6 +132,18 @@ class _Follower:
         return m
 
 
+def _anchor(markers_ice, markers_px, frame):
+    """The markers seen in ``frame`` (px) and their positions on the ice extrapolated
+    from the last two measured frames (constant velocity; the rock's motion is smooth),
+    for :meth:`GridTracker.update`; None without two recent frames."""
+    if len(markers_ice) < 2:
+        return None
+    (f0, p0), (f1, p1) = markers_ice
+    if frame - f1 > 3:
+        return None
+    return markers_px, p1 + (p1 - p0) * (frame - f1) / (f1 - f0)
+
+
 def _calibrate(image, rig, mask):
     """(calibration, "") or (None, why the grid was not found, without "no grid found")."""
     from ..calib import calibrate_frame
@@ -164,6 +176,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
     records: list[FrameRecord] = []
     L = det.layout_m
     seen_markers = False
+    markers_ice: list[tuple[int, np.ndarray]] = []  # last two measured (frame, (M, 2) m)
     for fr in frames:
         rec = FrameRecord(fr.index, fr.t)
         records.append(rec)
@@ -198,7 +211,8 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
             tracker = GridTracker(calib, rig)
         # The grid is followed in every frame, also while the markers are hidden (a
         # broom), so that its motion prediction - and the cell index - stay current.
-        pose = tracker.update(img, fr.index, mask=mask)
+        pose = tracker.update(img, fr.index, mask=mask,
+                              anchor=_anchor(markers_ice, mf.xy_px, fr.index) if found else None)
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px
         if not found:
@@ -208,6 +222,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
             rec.status = f"grid: {pose.message}"
             continue
         ice = pose.image_to_ice(mf.xy_px)
+        markers_ice = (markers_ice + [(fr.index, ice)])[-2:]
         c, phi, s, _ = similarity_fit(L, ice)
         mpp = pose.metres_per_px(np.nanmean(mf.xy_px, axis=0))
         rec.centre_app, rec.phi, rec.scale = c, phi, s
