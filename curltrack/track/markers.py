@@ -119,6 +119,9 @@ class MarkerDetector:
         # class means of the (adapting) marker colours as one product: _class_mean @ lab
         member = self.class_of[None, :] == np.arange(self.n_classes)[:, None]
         self._class_mean = member / member.sum(axis=1, keepdims=True)
+        # for each class: the classes in prototype order, that class first
+        self._class_first = [np.r_[c, np.delete(np.arange(self.n_classes), c)]
+                             for c in range(self.n_classes)]
         self.thread_lab = np.array([lab_of_rgb(parse_color(c)) for c in self.rig.grid_colors]
                                    ).reshape(-1, 3)
 
@@ -140,8 +143,7 @@ class MarkerDetector:
 
     def _is_class(self, obs_lab, bg_lab, i) -> bool:
         """The nearest-prototype rule of :meth:`_class_masks` for one colour."""
-        c = self.class_of[i]
-        order = np.r_[c, np.delete(np.arange(self.n_classes), c)]  # its class first
+        order = self._class_first[self.class_of[i]]
         protos = _weigh(np.vstack([(self._class_mean @ self.colors_lab)[order],
                                    self.thread_lab, bg_lab[None]]))
         d = np.sum((protos - _weigh(obs_lab)) ** 2, axis=1)
@@ -361,8 +363,8 @@ class MarkerDetector:
         if xb - xa < 3 or yb - ya < 3:
             return None
         win = image_bgr[ya:yb, xa:xb].astype(np.float32)[:, :, ::-1]  # RGB
-        yy, xx = np.ogrid[ya:yb, xa:xb]  # (broadcast: (h, 1) and (1, w))
-        yy, xx = yy.astype(float), xx.astype(float)
+        yy = np.arange(ya, yb, dtype=float)[:, None]  # (broadcast: (h, 1) and (1, w))
+        xx = np.arange(xa, xb, dtype=float)[None, :]
         rad = np.hypot(xx - cx, yy - cy)
         ring = (rad > R_in) & (rad <= R_out)
         core = rad <= 0.6 * r
