@@ -3,9 +3,12 @@
 Per frame:
 
 1. predict the homography from the last two trusted poses (constant velocity of the
-   view over the ice; the camera follows a smoothly decelerating rock);
+   view over the ice; the camera follows a smoothly decelerating rock), moved so that
+   the rock's markers, measured first, land where the rock's smooth motion puts them
+   (``anchor``: a handheld camera's shake is then predicted too);
 2. measure the threads on short cross profiles where the prediction puts them
-   (:func:`.profiles.sample_threads`) and refit the homography to those points
+   (:func:`.profiles.sample_threads`, ~``MAX_PROFILES`` of them, evenly spread) and
+   refit the homography to those points
    (:func:`.lattice.fit_points`).  When the motion has not been smooth (start, after a
    lost frame, a jerk) or the threads are not where predicted, a coarse pass first, with
    profiles spanning almost a whole cell, snaps to the nearest lattice alignment;

@@ -2,7 +2,8 @@
 
 Data flow (one way, streamed; only small per-frame records are kept)::
 
-    iter_frames -> MarkerDetector (rock in the image) -> GridTracker (rock masked)
+    iter_frames -> MarkerDetector (rock in the image) -> GridTracker (rock masked; its
+      prediction anchored on the markers' smooth motion on the ice)
       -> markers on the ice (lattice frame) -> similarity fit: apparent centre, angle,
          layout scale -> [after the loop] parallax (camera height, nadir)
       -> shot frame -> stops -> Series (SHOT.csv columns + sidecar)
