@@ -30,6 +30,8 @@ __all__ = ["StopTimes", "detect_stops", "fit_final_approach", "noise_sigma"]
 MIN_MOTION_SIGMA = 12.0
 #: Points of rest needed after the fitted stop to call it a stop (not a cut-off video).
 MIN_REST_FRAMES = 3
+#: Values of tau^lambda evaluated at once by the final-approach grid search (~8 MB).
+GRID_BATCH_VALUES = 1_000_000
 
 
 @dataclass
@@ -209,7 +211,11 @@ def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | N
     tF_grid = np.arange(t[i_c] - 3 * dt, min(t[-1], t[i_c] + 40 * dt) + dt / 4, dt / 2)
     lam_grid = np.linspace(1.05, 4.0, 24)
 
-    grid = _grid_cost(tF_grid, lam_grid, tw, Qw, quad, sigma)
+    # (in slices of t_F: the batch holds len(lam_grid) x len(tw) values per t_F, and a
+    # rock filmed at rest for minutes makes the window long)
+    per = max(1, GRID_BATCH_VALUES // (len(lam_grid) * len(tw)))
+    grid = np.concatenate([_grid_cost(tF_grid[k:k + per], lam_grid, tw, Qw, quad, sigma)
+                           for k in range(0, len(tF_grid), per)])
     i, j = np.unravel_index(np.argmin(grid), grid.shape)
     lo, hi = [tw[0] + dt, 1.0], [t[-1] + 5 * dt, 4.0]
     p0 = np.clip([tF_grid[i], lam_grid[j]], np.array(lo) + 1e-9, np.array(hi) - 1e-9)
