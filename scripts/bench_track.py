@@ -273,7 +273,8 @@ def main(argv=None):
     if "--speed" in argv:
         for w, h, full in ((960, 540, False), (1920, 1080, False), (960, 540, True)):
             r = bench_speed(w, h, n_frames=None if full else 150, full_draw=full)
-            print(f"{w}x{h}, {r['frames']} frames: decode {r['decode_fps']:.0f} fps, track {r['track_fps']:.0f} fps,"
+            print(f"{w}x{h}, {r['frames']} frames: decode {r['decode_fps']:.0f} fps, "
+                  f"track {r['track_fps']:.0f} fps,"
                   f" ratio {r['ratio']:.3f} (without calibration "
                   f"{r['ratio_excl_calibration']:.3f}); ms/frame decode {r['decode_ms']:.2f}"
                   f" grid {r['grid_ms']:.2f} markers {r['markers_ms']:.2f} other "

@@ -86,7 +86,8 @@ def _across(Hc_inv, K, dist, ab, fam, cells=0.02):
     norm = np.where(finite[:, None], norm, 1.0)
     u = np.where(finite[:, None], d / norm, 0.0)
     dq = np.where(finite[:, None], (q2[n:] - q) / norm, 0.0)
-    return np.where(finite[:, None], q, 0.0), np.where(finite[:, None], px, -1e6), u, dq, finite
+    q, px = np.where(finite[:, None], q, 0.0), np.where(finite[:, None], px, -1e6)
+    return q, px, u, dq, finite
 
 
 @dataclass
@@ -223,7 +224,8 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     if mask is not None:
         ci = np.clip(np.round(centre), 0, [w - 1, h - 1]).astype(np.intp)
         inside &= mask[ci[:, 1], ci[:, 0]] == 0
-    ab, fam, centre, dirv, half = ab[inside], fam[inside], centre[inside], dirv[inside], half[inside]
+    ab, fam, centre = ab[inside], fam[inside], centre[inside]
+    dirv, half = dirv[inside], half[inside]
     if len(ab) == 0:
         return None
     dt_px = max(1.0, max(half_px) / 10.0)  # <= 21 samples per profile
@@ -249,7 +251,8 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         pf = prof.astype(np.float32)
         base = pf[:2].mean(axis=0)
         diff = pf - base - (pf[-2:].mean(axis=0) - base) * frac[:, None, None]
-        sig = _group_columns(np.sqrt(np.einsum("snc,snc->sn", diff, diff)), starts) * inv_counts
+        sig = _group_columns(np.sqrt(np.einsum("snc,snc->sn", diff, diff)), starts)
+        sig *= inv_counts
     else:
         # One linear projection on the mean contrast direction of the thread colours for
         # finding the threads (the colours are told apart later, at the peaks only);
@@ -316,7 +319,8 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
             return c[sel]
 
     found = np.bincount(fam, sel, minlength=2) / np.maximum(np.bincount(fam, minlength=2), 1)
-    return ThreadPoints(xy=(centre + off[:, None] * dirv)[sel], q=(q_g + off[:, None] * dq)[sel],
+    return ThreadPoints(xy=(centre + off[:, None] * dirv)[sel],
+                        q=(q_g + off[:, None] * dq)[sel],
                         w=(s_sum * counts)[sel], fam=fam[sel], idx=line[sel].astype(int),
                         noise=float(np.max(noise)), n_profiles=int(len(sel)),
                         found=found.tolist(), _colour_of=colour_of)

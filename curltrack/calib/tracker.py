@@ -45,7 +45,7 @@ PROFILES_PER_CELL = 2.5  # at most this many profiles per cell along a thread: a
 MAX_PROFILES = 640
 COLOUR_CHECK_EVERY = 10  # frames between routine checks of the thread colour sequence
 COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap
-FINE_HALF_PX = 5.0  # half-length of the fine profiles before blur (px): thread + prediction error
+FINE_HALF_PX = 5.0  # half-length (px) of the fine profiles before blur: thread + prediction
 SHUTTER = 0.5  # assumed exposure (fraction of a frame) for the motion-blur filter
 
 
@@ -165,7 +165,8 @@ class GridTracker:
         average), or unchanged when that move is large or not finite."""
         seen = apply_h(H_pred, undistort(np.asarray(px, float), self.K, self.dist))
         d = np.mean(np.asarray(ice_pred, float) - seen, axis=0)
-        if not np.all(np.isfinite(d)) or np.max(np.abs(d) / (self.sx, self.sy)) > ANCHOR_MAX_CELLS:
+        cells = np.abs(d) / (self.sx, self.sy)
+        if not np.all(np.isfinite(d)) or np.max(cells) > ANCHOR_MAX_CELLS:
             return H_pred
         return np.array([[1.0, 0.0, d[0]], [0.0, 1.0, d[1]], [0.0, 0.0, 1.0]]) @ H_pred
 
@@ -261,7 +262,7 @@ class GridTracker:
             if info is None:
                 continue
             moved = np.abs(_origin(Hc) - _origin(Hc_pred)) * periods_px(Hc, f)
-            # without the coarse snap the profiles only see +-FINE_HALF_PX around the prediction
+            # without the coarse snap the profiles see only +-FINE_HALF_PX around it
             if attempt or (moved.max() < FINE_HALF_PX - 2.0 and info["ok_fraction"] > 0.6):
                 break
         if info is None:

@@ -212,8 +212,8 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
             tracker = GridTracker(calib, rig)
         # The grid is followed in every frame, also while the markers are hidden (a
         # broom), so that its motion prediction - and the cell index - stay current.
-        pose = tracker.update(img, fr.index, mask=mask,
-                              anchor=_anchor(markers_ice, mf.xy_px, fr.index) if found else None)
+        anchor = _anchor(markers_ice, mf.xy_px, fr.index) if found else None
+        pose = tracker.update(img, fr.index, mask=mask, anchor=anchor)
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px
         if not found:
