@@ -41,7 +41,7 @@ _FLOOR = 0.1
 _LOWRES_RADIUS_PX = 5.0
 #: Frames at least this large (short side, px) are first searched at half resolution
 #: while the marker size is unknown (full resolution when that misses a marker).
-_LOWRES_FIRST_MIN_PX = 720
+_LOWRES_FIRST_MIN_PX = 480
 
 
 def lab_of_rgb(rgb) -> np.ndarray:
