@@ -146,10 +146,10 @@ def bench_track(quick: bool) -> dict:
     # speed: track fps / decode-only fps of the same rendered video, in one run
     for w, h in ((960, 540), (1920, 1080)):
         out[f"speed_{h}p"] = bt.bench_speed(w, h, n_frames=90 if quick else 150,
-                                            threads=THREADS, repeats=1 if quick else 2)
+                                            threads=THREADS, repeats=1 if quick else 3)
     if not quick:  # a whole shot, as filmed: the one-off costs spread over ~700 frames
         out["speed_540p_draw"] = bt.bench_speed(960, 540, n_frames=None, full_draw=True,
-                                                threads=THREADS, repeats=2)
+                                                threads=THREADS, repeats=3)
     return out
 
 
