@@ -23,6 +23,7 @@ its 1 sigma follows from the pixel noise measured in the background ring.
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,6 +37,7 @@ _L_WEIGHT = 0.5
 _ADAPT = 0.15  # weight of a new observation in the running marker colour
 _WIN = (1.6, 1.5)
 _FLOOR = 0.1
+_CHROMA_P = np.eye(3) - 1.0 / 3.0  # RGB -> its component off the grey axis
 #: Markers at least this large (radius, px) are classified at half resolution (a blob of
 #: ~20 px is still a blob there); their sub-pixel centroid is measured at full resolution.
 _LOWRES_RADIUS_PX = 5.0
@@ -119,9 +121,6 @@ class MarkerDetector:
         # class means of the (adapting) marker colours as one product: _class_mean @ lab
         member = self.class_of[None, :] == np.arange(self.n_classes)[:, None]
         self._class_mean = member / member.sum(axis=1, keepdims=True)
-        # for each class: the classes in prototype order, that class first
-        self._class_first = [np.r_[c, np.delete(np.arange(self.n_classes), c)]
-                             for c in range(self.n_classes)]
         self.thread_lab = np.array([lab_of_rgb(parse_color(c)) for c in self.rig.grid_colors]
                                    ).reshape(-1, 3)
 
@@ -143,11 +142,11 @@ class MarkerDetector:
 
     def _is_class(self, obs_lab, bg_lab, i) -> bool:
         """The nearest-prototype rule of :meth:`_class_masks` for one colour."""
-        order = self._class_first[self.class_of[i]]
-        protos = _weigh(np.vstack([(self._class_mean @ self.colors_lab)[order],
-                                   self.thread_lab, bg_lab[None]]))
-        d = np.sum((protos - _weigh(obs_lab)) ** 2, axis=1)
-        return bool(np.argmin(d) == 0 and d[0] < 0.25 * np.sum((protos[0] - protos[-1]) ** 2))
+        c = self.class_of[i]
+        protos = np.vstack([self._class_mean @ self.colors_lab, self.thread_lab, bg_lab])
+        protos[:, 0] *= _L_WEIGHT
+        d = np.sum((protos - obs_lab * (_L_WEIGHT, 1.0, 1.0)) ** 2, axis=1)
+        return bool(d[c] <= d.min() and d[c] < 0.25 * np.sum((protos[c] - protos[-1]) ** 2))
 
     # --- public ------------------------------------------------------------------------
     def refine_at(self, image_bgr: np.ndarray, predicted: np.ndarray) -> MarkerFrame | None:
@@ -353,60 +352,67 @@ class MarkerDetector:
         classification rule of :meth:`_class_masks` for marker ``i``.
         """
         H, W = image_bgr.shape[:2]
-        r = max(1.5, np.sqrt(c_area / np.pi))
+        r = max(1.5, math.sqrt(c_area / math.pi))
         R_in, R_out = _WIN[0] * r + _WIN[1], 2.4 * r + 3.0
-        cx, cy = c_xy
+        cx, cy = float(c_xy[0]), float(c_xy[1])
         if min(cx, cy, W - 1 - cx, H - 1 - cy) < R_in:
             return None  # cut by the image border: its centroid would be biased
-        xa, xb = int(max(0, np.floor(cx - R_out))), int(min(W, np.ceil(cx + R_out) + 1))
-        ya, yb = int(max(0, np.floor(cy - R_out))), int(min(H, np.ceil(cy + R_out) + 1))
+        xa, xb = max(0, math.floor(cx - R_out)), min(W, math.ceil(cx + R_out) + 1)
+        ya, yb = max(0, math.floor(cy - R_out)), min(H, math.ceil(cy + R_out) + 1)
         if xb - xa < 3 or yb - ya < 3:
             return None
-        win = image_bgr[ya:yb, xa:xb].astype(np.float32)[:, :, ::-1]  # RGB
-        yy = np.arange(ya, yb, dtype=float)[:, None]  # (broadcast: (h, 1) and (1, w))
-        xx = np.arange(xa, xb, dtype=float)[None, :]
-        rad = np.hypot(xx - cx, yy - cy)
-        ring = (rad > R_in) & (rad <= R_out)
-        core = rad <= 0.6 * r
-        if ring.sum() < 8 or core.sum() < 1:
+        win = image_bgr[ya:yb, xa:xb, ::-1].astype(np.float32)  # RGB
+        x = np.arange(xa, xb, dtype=float)
+        y = np.arange(ya, yb, dtype=float)
+        # squared distances from the centre, (h, w), from the separable parts
+        rad2 = ((y - cy) ** 2)[:, None] + ((x - cx) ** 2)[None, :]
+        ring = (rad2 > R_in * R_in) & (rad2 <= R_out * R_out)
+        core = rad2 <= 0.36 * r * r
+        if np.count_nonzero(ring) < 8 or not core.any():
             return None
-        win_ring = win[ring]
-        bg = median(win_ring, axis=0)
-        col = median(win[core], axis=0)
+        win_ring = win[ring].T  # (3, n): each channel contiguous for the medians
+        bg = median(win_ring, axis=1)
+        col = median(win[core].T, axis=1)
         d = col - bg
         dd = float(d @ d)
         if dd < 25.0:  # < 5 grey levels apart: no usable contrast
             return None
-        noise = 1.4826 * median(np.abs(win_ring - bg), axis=0).mean()
+        noise = 1.4826 * float(median(np.abs(win_ring - bg[:, None]), axis=1).mean())
         # Project on the marker colour's chroma (d without its grey component) when it
         # has one: then shading of a neutral background (a cup ring, a light gradient on
         # grey granite or white ice) does not leak into the coverage and bias the centroid.
-        grey = np.full(3, 1 / np.sqrt(3), np.float32)
-        d_c = d - (d @ grey) * grey
-        proj = d_c if d_c @ d_c > 0.25 * dd else d
+        d_c = d - d.mean()
+        chroma = float(d_c @ d_c) > 0.25 * dd
+        proj = d_c if chroma else d
         den = float(proj @ d)
-        # the coverage does not depend on the centre: once; only the disc moves
-        diff = win - bg
-        s = diff @ proj / den
-        res = diff - s[..., None] * d
-        if proj is d_c:
-            res = res - (res @ grey)[..., None] * grey
-        perp = np.linalg.norm(res, axis=-1)
-        cover = np.clip((s - _FLOOR) / (1 - _FLOOR), 0.0, 1.0) * (perp < 0.35 * np.sqrt(dd) + 2 * noise)
+        # One product gives, per pixel, the coverage s = diff.proj / den and the part of
+        # diff off the background -> marker segment, P (diff - s d), P dropping the grey
+        # component when projecting on the chroma (P (I - proj d^T / den) = P - proj d_c^T / den).
+        L = np.empty((3, 4), np.float32)
+        L[:, :3] = (_CHROMA_P if chroma else np.eye(3)) - np.outer(proj, d_c if chroma else d) / den
+        L[:, 3] = proj / den
+        sr = (win - bg).reshape(-1, 3) @ L
+        perp2 = np.einsum("ij,ij->i", sr[:, :3], sr[:, :3]).reshape(rad2.shape)
+        s = sr[:, 3].reshape(rad2.shape)
+        cover = (np.clip((s - _FLOOR) / (1 - _FLOOR), 0.0, 1.0)
+                 * (perp2 < (0.35 * math.sqrt(dd) + 2 * noise) ** 2))
+        inside = rad2 <= R_in * R_in
         for _ in range(2):
-            w = cover * (np.hypot(xx - cx, yy - cy) <= R_in)
-            sw = w.sum()
+            wgt = cover * inside
+            wx, wy = wgt.sum(axis=0, dtype=float), wgt.sum(axis=1, dtype=float)
+            sw = float(wx.sum())
             if sw <= 0.5:
                 return None
-            cx, cy = (w * xx).sum() / sw, (w * yy).sum() / sw
-        sigma_w = max(noise, 0.5) * float(np.linalg.norm(proj)) / den
-        inside = np.hypot(xx - cx, yy - cy) <= R_in
-        r2 = ((xx - cx) ** 2 + (yy - cy) ** 2)[inside].sum()
-        sigma = float(sigma_w * np.sqrt(r2 / 2.0) / sw)
-        obs_lab, bg_lab = lab_of_rgb(np.clip([col, bg], 0, 255))
+            cx, cy = float(wx @ x) / sw, float(wy @ y) / sw
+            rad2 = ((y - cy) ** 2)[:, None] + ((x - cx) ** 2)[None, :]
+            inside = rad2 <= R_in * R_in
+        sigma_w = max(noise, 0.5) * math.sqrt(float(proj @ proj)) / den
+        r2 = float(rad2[inside].sum())
+        sigma = sigma_w * math.sqrt(r2 / 2.0) / sw
+        obs_lab, bg_lab = lab_of_rgb(np.clip(np.stack([col, bg]), 0, 255))
         if check_class and not self._is_class(obs_lab, bg_lab, i):
             return None
         # Adapt the colour model to what the camera shows (slowly, and only when sure).
         self.colors_lab[i] = (1 - _ADAPT) * self.colors_lab[i] + _ADAPT * obs_lab
         contrast = float(np.linalg.norm(_weigh(obs_lab) - _weigh(bg_lab)))
-        return np.array([cx, cy]), sigma, float(sw), contrast
+        return np.array([cx, cy]), sigma, sw, contrast

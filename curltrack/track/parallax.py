@@ -62,39 +62,45 @@ def similarity_fit(layout: np.ndarray, pts: np.ndarray):
     return c, phi, s, rms
 
 
-def _rt_from_h(A: np.ndarray, f: float, pp) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation (3x3) and camera centre (3,) from an ice->image homography and focal."""
-    Kinv = np.array([[1 / f, 0, -pp[0] / f], [0, 1 / f, -pp[1] / f], [0, 0, 1.0]])
-    M = Kinv @ A
-    lam = 2.0 / (np.linalg.norm(M[:, 0]) + np.linalg.norm(M[:, 1]))
-    r1, r2, t = M[:, 0] * lam, M[:, 1] * lam, M[:, 2] * lam
-    r3 = np.array([r1[1] * r2[2] - r1[2] * r2[1], r1[2] * r2[0] - r1[0] * r2[2],
-                   r1[0] * r2[1] - r1[1] * r2[0]])  # r1 x r2 (np.cross is slow on 3-vectors)
-    R = np.empty((3, 3))
-    R[:, 0], R[:, 1], R[:, 2] = r1, r2, r3
-    C = -R.T @ t
-    if C[2] < 0:  # the camera is above the ice
-        R[:, 0], R[:, 1] = -r1, -r2
-        C = -R.T @ (-t)
+def _rt_from_h(A: np.ndarray, f, pp) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation (..., 3, 3) and camera centre (..., 3) from ice->image homographies
+    (..., 3, 3) and focal lengths ``f`` (px, scalar or (...)); principal point ``pp``."""
+    A = np.asarray(A, float)
+    f = np.asarray(f, float)[..., None]
+    # K^-1 A, row by row: (A_0 - pp_x A_2) / f, (A_1 - pp_y A_2) / f, A_2
+    M = np.stack([(A[..., 0, :] - pp[0] * A[..., 2, :]) / f,
+                  (A[..., 1, :] - pp[1] * A[..., 2, :]) / f, A[..., 2, :]], axis=-2)
+    norms = np.sqrt(np.sum(M[..., :, :2] ** 2, axis=-2))  # |M[:, 0]|, |M[:, 1]|
+    lam = (2.0 / (norms[..., 0] + norms[..., 1]))[..., None]
+    r1, r2, t = M[..., :, 0] * lam, M[..., :, 1] * lam, M[..., :, 2] * lam
+    C = -(r1 * t).sum(-1), -(r2 * t).sum(-1), -(np.cross(r1, r2) * t).sum(-1)
+    C = np.stack(C, axis=-1)
+    # the camera is above the ice: where z < 0 the solution is (-r1, -r2, r3, -t)
+    flip = np.where(C[..., 2:] < 0, -1.0, 1.0)
+    r1, r2 = r1 * flip, r2 * flip
+    C = C * np.concatenate([np.ones_like(flip), np.ones_like(flip), flip], axis=-1)
+    R = np.stack([r1, r2, np.cross(r1, r2)], axis=-1)
     return R, C
 
 
-def camera_centre(H_img2ice: np.ndarray, f: float, pp) -> np.ndarray:
+def camera_centre(H_img2ice: np.ndarray, f, pp) -> np.ndarray:
     """Lens centre (x, y, z) in the lattice frame (m) for focal ``f`` (px) and principal
-    point ``pp`` (px); (x, y) is the nadir, z the height above the homography's plane."""
+    point ``pp`` (px); (x, y) is the nadir, z the height above the homography's plane.
+    ``H_img2ice`` may be a stack (..., 3, 3), with ``f`` a scalar or one per homography."""
     return _rt_from_h(np.linalg.inv(H_img2ice), f, pp)[1]
 
 
-def focal_for_height(H_img2ice: np.ndarray, height_m: float, pp, f0: float = 1000.0) -> float:
-    """Focal length (px) that puts the lens ``height_m`` above the plane (z grows ~ f)."""
-    f = f0
+def focal_for_height(H_img2ice: np.ndarray, height_m: float, pp, f0: float = 1000.0):
+    """Focal length (px) that puts the lens ``height_m`` above the plane (z grows ~ f);
+    NaN where the plane is not below the lens.  A stack (..., 3, 3) gives (...) focals."""
     A = np.linalg.inv(H_img2ice)
-    for _ in range(6):
-        z = _rt_from_h(A, f, pp)[1][2]
-        if not np.isfinite(z) or z <= 0:
-            return float("nan")
-        f *= height_m / z
-    return float(f)
+    f = np.full(A.shape[:-2], float(f0))
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for _ in range(6):
+            z = _rt_from_h(A, f, pp)[1][..., 2]
+            f = np.where(np.isfinite(z) & (z > 0), f * height_m / np.where(z > 0, z, 1.0),
+                         np.nan)
+    return float(f) if f.ndim == 0 else f
 
 
 @dataclass(frozen=True)

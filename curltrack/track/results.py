@@ -68,16 +68,19 @@ def camera_turn(records, calib) -> tuple[np.ndarray, np.ndarray]:
     differenced modulo 90 deg (:func:`~curltrack.calib.grid.lattice_turn_deg`) and
     divided by the frame gap.  Returns (frame of the later record, rate).
     """
-    from ..calib.grid import image_yaw_deg, lattice_turn_deg
+    from ..calib.grid import lattice_turn_deg
+    from ..calib.lens import undistort
 
-    frames, yaw = [], []
-    for r in records:
-        if r.status == "" and r.H is not None:
-            frames.append(r.frame)
-            yaw.append(image_yaw_deg(r.H, calib.K, calib.dist))
-    if len(frames) < 2:
+    used = [r for r in records if r.status == "" and r.H is not None]
+    if len(used) < 2:
         return np.zeros(0, int), np.zeros(0)
-    frames, yaw = np.array(frames), np.array(yaw)
+    frames = np.array([r.frame for r in used])
+    # image_yaw_deg of every homography at once: the image +u step at the principal point
+    c = calib.K[:2, 2]
+    ends = np.c_[undistort(np.array([c, c + (20.0, 0.0)]), calib.K, calib.dist), np.ones(2)]
+    a, b = np.einsum("nij,kj->nki", np.array([r.H for r in used]), ends).transpose(1, 0, 2)
+    d = b[:, :2] / b[:, 2:] - a[:, :2] / a[:, 2:]
+    yaw = np.degrees(np.arctan2(d[:, 1], d[:, 0]))
     rate = np.abs(lattice_turn_deg(yaw[:-1], yaw[1:])) / np.diff(frames)
     if rate.size >= 3:
         # running median of 3: the max of raw rates is biased up by the homography's
@@ -138,19 +141,17 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     nadir = np.full((n, 2), np.nan)
     if np.isfinite(est.height_m):
         # (the focal is one number: its median over <= 60 frames spread over the shot)
-        fs = np.array([focal_for_height(records[i].H, est.height_m, pp)
-                       for i in idx[::max(1, len(idx) // 60)]])
+        fs = focal_for_height(np.array([records[i].H for i in idx[::max(1, len(idx) // 60)]]),
+                              est.height_m, pp)
         f_px = float(np.nanmedian(fs)) if np.isfinite(fs).any() else np.nan
         if np.isfinite(f_px):
-            for i in idx:
-                nadir[i] = camera_centre(records[i].H, f_px, pp)[:2]
+            nadir[idx] = camera_centre(np.array([records[i].H for i in idx]), f_px, pp)[:, :2]
     centre = np.full((n, 2), np.nan)
     phi = np.full(n, np.nan)
-    for i in idx:
-        r = records[i]
-        nd = nadir[i] if np.isfinite(nadir[i]).all() else r.centre_app
-        centre[i] = correct_parallax(r.centre_app, nd, est.k)
-        phi[i] = r.phi
+    app = np.array([records[i].centre_app for i in idx]).reshape(-1, 2)
+    nd = np.where(np.isfinite(nadir[idx]).all(axis=1, keepdims=True), nadir[idx], app)
+    centre[idx] = correct_parallax(app, nd, est.k)
+    phi[idx] = [records[i].phi for i in idx]
     # image up direction in the lattice frame (first measured frame), for a still rock
     r0 = records[idx[0]]
     from ..calib.lens import apply_h, undistort
