@@ -69,9 +69,19 @@ class PlaneMap:
     def metres_per_px(self, pt_px=None) -> float:
         """Local scale (m/px) of the ice plane at an image point (default the centre)."""
         c = self.K[:2, 2] if pt_px is None else np.asarray(pt_px, float)
-        p = np.array([c, c + (1.0, 0.0), c + (0.0, 1.0)])
-        m = self.image_to_ice(p)
-        return float(np.sqrt(abs(np.linalg.det(np.array([m[1] - m[0], m[2] - m[0]])))))
+        return pixel_scale(self.image_to_ice(pixel_steps(c)))
+
+
+def pixel_steps(pt_px) -> np.ndarray:
+    """A point and its neighbours one pixel along +u and +v, (3, 2) px."""
+    return np.asarray(pt_px, float) + np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+
+
+def pixel_scale(steps_m) -> float:
+    """Local scale (m/px) from :func:`pixel_steps` mapped to the ice: sqrt of the area
+    (m^2) of one pixel."""
+    (x0, y0), (x1, y1), (x2, y2) = np.asarray(steps_m, float)
+    return float(np.sqrt(abs((x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0))))
 
 
 @dataclass

@@ -32,7 +32,7 @@ from ..errors import TrackingError
 from .grid import Calibration, PlaneMap, cells_from_metric, colour_phase, metric_from_cells
 from .lattice import fit_points, periods_px
 from .profiles import sample_threads
-from .lens import apply_h, undistort
+from .lens import apply_h
 
 AMBIGUOUS_CELLS = 0.35  # unexplained jump (cells) beyond which the index is not trusted
 PROFILE_STEP_PX = 18.0  # spacing of the cross profiles along each thread (px), at least
@@ -160,10 +160,10 @@ class GridTracker:
         return cv2.getPerspectiveTransform(self._ref.astype(np.float32),
                                            P.astype(np.float32)).astype(float)
 
-    def _anchored(self, H_pred, px, ice_pred) -> np.ndarray:
-        """``H_pred`` moved on the ice so that it maps ``px`` onto ``ice_pred`` (on
-        average), or unchanged when that move is large or not finite."""
-        seen = apply_h(H_pred, undistort(np.asarray(px, float), self.K, self.dist))
+    def _anchored(self, H_pred, px_u, ice_pred) -> np.ndarray:
+        """``H_pred`` moved on the ice so that it maps ``px_u`` (undistorted px) onto
+        ``ice_pred`` (on average), or unchanged when that move is large or not finite."""
+        seen = apply_h(H_pred, np.asarray(px_u, float))
         d = np.mean(np.asarray(ice_pred, float) - seen, axis=0)
         cells = np.abs(d) / (self.sx, self.sy)
         if not np.all(np.isfinite(d)) or np.max(cells) > ANCHOR_MAX_CELLS:
@@ -227,8 +227,8 @@ class GridTracker:
         mask : (H, W) uint8, optional
             Nonzero = ignore (the rock disc and its surroundings, a broom).
         anchor : ((M, 2), (M, 2)) arrays, optional
-            Points seen in this frame (observed px) and where they are predicted on the
-            ice (lattice-frame m): the rock's markers, whose motion on the ice is smooth
+            Points seen in this frame (undistorted px, :func:`~.lens.undistort`) and where
+            they are predicted on the ice (lattice-frame m): the rock's markers, whose motion on the ice is smooth
             even when the camera's is not.  The motion prediction is moved so that it
             maps the one onto the other (by less than ``ANCHOR_MAX_CELLS``, else the
             anchor is ignored), which follows a shaking camera without a coarse search.

@@ -134,9 +134,9 @@ class _Follower:
 
 
 def _anchor(markers_ice, markers_px, frame):
-    """The markers seen in ``frame`` (px) and their positions on the ice extrapolated
-    from the last two measured frames (constant velocity; the rock's motion is smooth),
-    for :meth:`GridTracker.update`; None without two recent frames."""
+    """The markers seen in ``frame`` (undistorted px) and their positions on the ice
+    extrapolated from the last two measured frames (constant velocity; the rock's motion
+    is smooth), for :meth:`GridTracker.update`; None without two recent frames."""
     if len(markers_ice) < 2:
         return None
     (f0, p0), (f1, p1) = markers_ice
@@ -168,6 +168,8 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
         ``info`` holds the calibration (``calib``) and the focal/principal point data.
     """
     from ..calib import GridTracker
+    from ..calib.grid import pixel_scale, pixel_steps
+    from ..calib.lens import apply_h, undistort
 
     det = MarkerDetector(rig)
     fol = _Follower(det, rig)
@@ -212,7 +214,12 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
             tracker = GridTracker(calib, rig)
         # The grid is followed in every frame, also while the markers are hidden (a
         # broom), so that its motion prediction - and the cell index - stay current.
-        anchor = _anchor(markers_ice, mf.xy_px, fr.index) if found else None
+        anchor = None
+        if found:  # the markers and a pixel's steps at their centre, undistorted once
+            M = len(L)
+            q = undistort(np.vstack([mf.xy_px, pixel_steps(mf.xy_px.mean(axis=0))]),
+                          calib.K, calib.dist)
+            anchor = _anchor(markers_ice, q[:M], fr.index)
         pose = tracker.update(img, fr.index, mask=mask, anchor=anchor)
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px
@@ -222,10 +229,11 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
         if not pose.ok:
             rec.status = f"grid: {pose.message}"
             continue
-        ice = pose.image_to_ice(mf.xy_px)
+        on_ice = apply_h(pose.H, q)
+        ice = on_ice[:M]
         markers_ice = (markers_ice + [(fr.index, ice)])[-2:]
         c, phi, s, _ = similarity_fit(L, ice)
-        mpp = pose.metres_per_px(np.nanmean(mf.xy_px, axis=0))
+        mpp = pixel_scale(on_ice[M:])
         rec.centre_app, rec.phi, rec.scale = c, phi, s
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
         rec.grid_sigma_m = (pose.sigma_px if np.isfinite(pose.sigma_px) else 0.3) * mpp
