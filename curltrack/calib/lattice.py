@@ -14,6 +14,8 @@ make a pixel jump to the neighbouring thread.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ._stats import median
@@ -227,8 +229,11 @@ def _h_jacobian(Hc, q, fam_a, fam_b, pa, pb):
 
 def periods_px(Hc, f):
     """Pixels per cell of families A and B at the image centre."""
-    J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])  # d(a,b)/dq at q = 0
-    return f / np.linalg.norm(J[0]), f / np.linalg.norm(J[1])
+    # |rows of J| with J = d(a, b)/dq at q = 0 = Hc[:2, :2] - Hc[:2, 2] Hc[2, :2]^T
+    # (scalar arithmetic: called several times per frame on a 3x3)
+    (h00, h01, h02), (h10, h11, h12), (h20, h21, _) = np.asarray(Hc, float).tolist()
+    return (f / math.hypot(h00 - h02 * h20, h01 - h02 * h21),
+            f / math.hypot(h10 - h12 * h20, h11 - h12 * h21))
 
 
 LENS_PARAMS = ("k1", "k2", "cx", "cy")
@@ -448,14 +453,13 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
     io = idx[order].astype(float)
     w0 = w[order]
     parts = (slice(0, na), slice(na, None))
-    onehot = np.zeros((len(order), 2, 1))
-    onehot[np.arange(len(order)), row] = 1.0
-    J = np.empty((len(order), 8))
+    J = np.zeros((len(order), 8))
     ww = w0
     for it in range(iterations):
-        p = np.asarray(periods_px(Hc, f))[row]
-        wq = X @ Hc[2]
-        val = np.einsum("ij,ij->i", Hc[row], X) / wq
+        p = np.where(row, *periods_px(Hc, f)[::-1])
+        XH = X @ Hc.T  # (a, b, w) homogeneous, per point
+        wq = XH[:, 2]
+        val = np.where(row, XH[:, 1], XH[:, 0]) / wq
         r = (val - io) * p
         # Tukey weights about each family's median residual (a common shift of a family
         # is the correction sought, not an outlier), scale from the MAD
@@ -467,14 +471,16 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
                 u[part] = (rp - med) / max(clip_px, 4.5 * 1.4826 * median(np.abs(rp - med)))
         ww = w0 * np.square(np.maximum(1.0 - u * u, 0.0))
         # d(residual)/d(h0..h7), analytic (as _h_jacobian): h0..h2 or h3..h5 by family
-        pw = p / wq
-        J[:, :6] = (onehot * (pw[:, None] * X)[:, None, :]).reshape(-1, 6)
-        J[:, 6:] = -(pw * val)[:, None] * X[:, :2]
+        pw = (p / wq)[:, None]
+        J[:na, 0:3] = pw[:na] * X[:na]  # (rows ordered by family: A's h0..h2, B's h3..h5)
+        J[na:, 3:6] = pw[na:] * X[na:]
+        J[:, 6:] = -(pw * val[:, None]) * X[:, :2]
         JW = J * ww[:, None]
         A = J.T @ JW
-        A += 1e-9 * np.trace(A) * np.eye(8)
+        A.flat[::9] += 1e-9 * np.trace(A)
         step = np.linalg.solve(A, -JW.T @ r)
-        Hc = Hc + np.append(step, 0.0).reshape(3, 3)
+        Hc = Hc.copy()
+        Hc.flat[:8] += step
         if np.abs(J @ step).max(initial=0.0) < tol_px:
             break
     used = ww > 0

@@ -52,11 +52,15 @@ def _frame_edge(w, h, K_flat, dist):
 def _group_columns(a, starts):
     """Sums of consecutive columns of ``a`` (S, N) from each of ``starts`` to the next,
     transposed: a C-contiguous float32 (G, S) array."""
-    cs = np.empty((a.shape[0], a.shape[1] + 1))
-    cs[:, 0] = 0.0
-    np.cumsum(a, axis=1, out=cs[:, 1:])
-    return np.ascontiguousarray((cs[:, np.r_[starts[1:], a.shape[1]]] - cs[:, starts]).T,
-                                dtype=np.float32)
+    return np.ascontiguousarray(np.add.reduceat(a, starts, axis=1, dtype=np.float32).T)
+
+
+@functools.lru_cache(maxsize=8)
+def _unit_steps(n):
+    """``n`` evenly spaced float32 values from 0 to 1 (read-only; cached)."""
+    out = np.linspace(0.0, 1.0, n, dtype=np.float32)
+    out.setflags(write=False)
+    return out
 
 
 def _lattice_to_px(Hc_inv, K, dist, ab):
@@ -74,9 +78,9 @@ def _across(Hc_inv, K, dist, ab, fam, cells=0.02):
     points that do not map are returned far outside the image), and ``finite`` (N,).
     """
     n = len(ab)
-    step = np.zeros_like(ab)
-    step[np.arange(n), fam] = cells
-    q2, px2 = _lattice_to_px(Hc_inv, K, dist, np.concatenate([ab, ab + step]))
+    ab2 = np.concatenate([ab, ab])
+    ab2[np.arange(n, 2 * n), fam] += cells
+    q2, px2 = _lattice_to_px(Hc_inv, K, dist, ab2)
     q, px = q2[:n], px2[:n]
     d = px2[n:] - px
     norm = np.hypot(d[:, 0], d[:, 1])[:, None]
@@ -193,7 +197,7 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     if max_profiles:
         # profiles in view ~ frame area (cells^2) x profiles per cell^2 of each family
         x, y = ab_edge[:, 0], ab_edge[:, 1]
-        area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+        area = 0.5 * abs(float(x[:-1] @ y[1:] - y[:-1] @ x[1:]) + x[-1] * y[0] - y[-1] * x[0])
         keep_frac = min(1.0, max_profiles / max(area * np.sum(1.0 / step_cells), 1.0))
     pts, fams = [], []
     for fam in (0, 1):
@@ -207,11 +211,11 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
             unit = np.floor(along / (step_cells[fam] if whole[fam] else seg_cells[fam]))
             keep &= np.floor((unit + 1) * keep_frac) > np.floor(unit * keep_frac)
         along = along[keep]
-        ab = np.empty((len(lines) * len(along), 2))
-        ab[:, fam] = np.repeat(lines, len(along))
-        ab[:, other] = np.tile(along, len(lines))
-        pts.append(ab)
-        fams.append(np.full(len(ab), fam))
+        ab = np.empty((len(lines), len(along), 2))
+        ab[:, :, fam] = lines[:, None]
+        ab[:, :, other] = along
+        pts.append(ab.reshape(-1, 2))
+        fams.append(np.full(len(pts[-1]), fam))
     ab = np.concatenate(pts)
     if len(ab) == 0:
         return None
@@ -222,15 +226,16 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     inside = finite & (centre[:, 0] > lim) & (centre[:, 0] < w - 1 - lim) \
         & (centre[:, 1] > lim) & (centre[:, 1] < h - 1 - lim)
     if mask is not None:
-        ci = np.clip(np.round(centre), 0, [w - 1, h - 1]).astype(np.intp)
-        inside &= mask[ci[:, 1], ci[:, 0]] == 0
+        rows_in = np.flatnonzero(inside)
+        ci = np.rint(centre[rows_in]).astype(np.intp)  # (inside the image)
+        inside[rows_in] = mask[ci[:, 1], ci[:, 0]] == 0
     ab, fam, centre = ab[inside], fam[inside], centre[inside]
     dirv, half = dirv[inside], half[inside]
     if len(ab) == 0:
         return None
     dt_px = max(1.0, max(half_px) / 10.0)  # <= 21 samples per profile
     n_s = int(np.ceil(max(half_px) / dt_px)) * 2 + 1
-    frac = np.linspace(0.0, 1.0, n_s, dtype=np.float32)
+    frac = _unit_steps(n_s)
     t = (2.0 * frac - 1.0) * half[:, None].astype(np.float32)  # px along the profile
     # (sample-major: remap is much faster on a few long rows than on many short ones)
     c32, d32, tT = centre.astype(np.float32).T, dirv.astype(np.float32).T, t.T
@@ -239,12 +244,12 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     # Consecutive profiles of a thread are averaged over segments (longer when blurred:
     # a smeared thread is faint in any one profile but straight over a long stretch).
     # The profiles come ordered by family, thread and position along it.
-    members = np.arange(len(ab))
-    line, along = ab[members, fam], ab[members, 1 - fam]
+    line, along = np.where(fam, ab[:, 1], ab[:, 0]), np.where(fam, ab[:, 0], ab[:, 1])
     # (|line| < 1000 cells and segment indices are small integers: one exact float key)
     key = (fam * 4096.0 + line) * 2.0 ** 24 + np.floor(along / seg_cells[fam])
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    counts = np.diff(np.r_[starts, len(key)])
+    starts = np.flatnonzero(np.concatenate(([True], key[1:] != key[:-1])))
+    ends = np.append(starts[1:], len(key))
+    counts = ends - starts
     inv_counts = (1.0 / counts).astype(np.float32)[:, None]
     # The thread signal: the profile less the straight line through its two ends.
     if model.directions is None:
@@ -264,21 +269,23 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         sig -= b0[:, None] + (0.5 * (sig[:, -1] + sig[:, -2]) - b0)[:, None] * frac
     # The averaged profile measures the thread's offset at the members' mean position:
     # that point of the predicted thread (a straight line in lattice coordinates).
-    cum = np.r_[0.0, np.cumsum(along)]
+    cum = np.concatenate(([0.0], np.cumsum(along)))
     fam, t, line = fam[starts], t[starts], line[starts]
     rows = np.arange(len(starts))
     ab_g = np.empty((len(starts), 2))
     ab_g[rows, fam] = line
-    ab_g[rows, 1 - fam] = (cum[starts + counts] - cum[starts]) / counts
+    ab_g[rows, 1 - fam] = (cum[ends] - cum[starts]) / counts
     q_g, centre, dirv, dq, _ = _across(Hc_inv, K, dist, ab_g, fam)
     # Find the thread on a copy smoothed by the blur length (merges the ghosts of a
     # smeared thread), take the centroid of the unsmoothed signal over the run found.
+    n_a = int(np.searchsorted(fam, 1))  # (rows ordered by family: A, then B)
+    fam_rows = (slice(0, n_a), slice(n_a, None))
     det = sig.copy()
     for j in (0, 1):
         k = int(round(BOX * blur_px[j] * (n_s - 1) / (2.0 * half_px[j])))
-        fam_j = fam == j
-        if k >= 2 and fam_j.any():
-            det[fam_j] = _box(sig[fam_j], k)
+        rows_j = fam_rows[j]
+        if k >= 2 and len(sig[rows_j]):
+            det[rows_j] = _box(sig[rows_j], k)
     kpk = det.argmax(axis=1)
     peak = det[rows, kpk]
     # the contiguous run above 30 % of the peak that contains the peak
@@ -296,10 +303,10 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     noise = np.zeros(2)
     rel_floor = np.zeros(2)
     for j in (0, 1):
-        rows_j = fam == j
-        if rows_j.any():
+        rows_j = fam_rows[j]
+        if len(peak[rows_j]):
             aj = away[rows_j]
-            if aj.sum() > 0.1 * aj.size:
+            if np.count_nonzero(aj) > 0.1 * aj.size:
                 noise[j] = 1.4826 * median(np.abs(det[rows_j][aj])) + 1e-3
             rel_floor[j] = 0.25 * median(peak[rows_j])
     floor = 0.3 * sig.max(axis=1, where=keep, initial=0.0)
