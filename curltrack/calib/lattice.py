@@ -204,29 +204,6 @@ def assign_families(a, b, pa, pb, band_px, cross_px=None):
     return fam_a, fam_b, ia, ib
 
 
-def _residuals(Hc, q, fam_a, fam_b, ia, ib, pa, pb):
-    a = apply_h(Hc, q[fam_a])[:, 0]
-    b = apply_h(Hc, q[fam_b])[:, 1]
-    return np.concatenate([(a - ia[fam_a]) * pa, (b - ib[fam_b]) * pb])
-
-
-def _h_jacobian(Hc, q, fam_a, fam_b, pa, pb):
-    """d(residual)/d(h0..h7) for the homography, analytic (rows: family A then B)."""
-    out = []
-    for fam, row, p in ((fam_a, 0, pa), (fam_b, 1, pb)):
-        x, y = q[fam, 0], q[fam, 1]
-        wq = Hc[2, 0] * x + Hc[2, 1] * y + Hc[2, 2]
-        val = (Hc[row, 0] * x + Hc[row, 1] * y + Hc[row, 2]) / wq
-        J = np.zeros((len(x), 8))
-        J[:, 3 * row] = p * x / wq
-        J[:, 3 * row + 1] = p * y / wq
-        J[:, 3 * row + 2] = p / wq
-        J[:, 6] = -p * val * x / wq
-        J[:, 7] = -p * val * y / wq
-        out.append(J)
-    return np.vstack(out)
-
-
 def periods_px(Hc, f):
     """Pixels per cell of families A and B at the image centre."""
     # |rows of J| with J = d(a, b)/dq at q = 0 = Hc[:2, :2] - Hc[:2, 2] Hc[2, :2]^T
@@ -264,8 +241,8 @@ def _dq_dlens(xs, K, lens, q, which=(0, 1, 2, 3)):
     f = K[0, 0]
     k1, k2, cx, cy = lens
     d = (xs - (cx, cy)) / f
-    rd = np.hypot(d[:, 0], d[:, 1])
-    r2 = np.sum(q * q, axis=1)
+    rd = np.sqrt(np.einsum("ij,ij->i", d, d))
+    r2 = np.einsum("ij,ij->i", q, q)
     D = 1.0 + r2 * (3.0 * k1 + 5.0 * k2 * r2)
     out = np.empty((len(xs), 2, len(which)))
     if 2 in which or 3 in which:
@@ -287,19 +264,44 @@ def _dq_dlens(xs, K, lens, q, which=(0, 1, 2, 3)):
     return out
 
 
-def _lens_columns(Hc, xs, q, K, lens, fam_a, fam_b, pa, pb, free_idx):
-    """d(residual)/d(lens parameters ``free_idx``), rows as :func:`_residuals`."""
-    parts = []
-    for fam, row, p in ((fam_a, 0, pa), (fam_b, 1, pb)):
-        qq = q[fam]
-        x, y = qq[:, 0], qq[:, 1]
-        w = Hc[2, 0] * x + Hc[2, 1] * y + Hc[2, 2]
-        v = (Hc[row, 0] * x + Hc[row, 1] * y + Hc[row, 2]) / w
-        gx = p * (Hc[row, 0] - v * Hc[2, 0]) / w
-        gy = p * (Hc[row, 1] - v * Hc[2, 1]) / w
-        dq = _dq_dlens(xs[fam], _lens_K(K, lens), lens, qq, tuple(free_idx))
-        parts.append(gx[:, None] * dq[:, 0] + gy[:, None] * dq[:, 1])
-    return np.vstack(parts)
+def _rows(Hc, q, xs, ab, fam_a, fam_b, ia, ib, pa, pb, K, lens, free_idx=()):
+    """Residuals (px) of the thread pixels from their lines and the Jacobian, analytic.
+
+    Rows: the pixels of family A (``fam_a``), then of family B, each in pixel order
+    (``rows`` gives their indices).  ``ab = apply_h(Hc, q)``; ``ia``, ``ib`` the line
+    indices.  Columns: h0..h7 of ``Hc``, then the lens parameters ``free_idx`` (indices
+    into k1, k2, cx, cy).
+
+    Returns
+    -------
+    r, J, rows : (n,), (n, 8 + len(free_idx)), (n,) int
+    """
+    in_a, in_b = np.flatnonzero(fam_a), np.flatnonzero(fam_b)
+    rows = np.concatenate([in_a, in_b])
+    n_a = len(in_a)
+    qq = q[rows]
+    x, y = qq[:, 0], qq[:, 1]
+    p = np.empty(len(rows))
+    p[:n_a], p[n_a:] = pa, pb
+    val = np.concatenate([ab[in_a, 0], ab[in_b, 1]])  # the line coordinate, cells
+    r = (val - np.concatenate([ia[in_a], ib[in_b]])) * p
+    pw = p / (Hc[2, 0] * x + Hc[2, 1] * y + Hc[2, 2])
+    J = np.zeros((len(rows), 8 + len(free_idx)))
+    for fam, sl in ((0, slice(0, n_a)), (1, slice(n_a, None))):
+        J[sl, 3 * fam] = pw[sl] * x[sl]
+        J[sl, 3 * fam + 1] = pw[sl] * y[sl]
+        J[sl, 3 * fam + 2] = pw[sl]
+    J[:, 6] = -pw * val * x
+    J[:, 7] = -pw * val * y
+    if len(free_idx):
+        # chain rule through q: d(residual)/dq . dq/dlens
+        h0, h1 = np.empty(len(rows)), np.empty(len(rows))
+        h0[:n_a], h0[n_a:] = Hc[0, 0], Hc[1, 0]
+        h1[:n_a], h1[n_a:] = Hc[0, 1], Hc[1, 1]
+        gx, gy = pw * (h0 - val * Hc[2, 0]), pw * (h1 - val * Hc[2, 1])
+        dq = _dq_dlens(xs[rows], _lens_K(K, lens), lens, qq, tuple(free_idx))
+        J[:, 8:] = gx[:, None] * dq[:, 0] + gy[:, None] * dq[:, 1]
+    return r, J, rows
 
 
 def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None,),
@@ -342,26 +344,23 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
     q = _normalised(xs, K, lens)
     Hc = Hc / Hc[2, 2]
     bands = np.broadcast_to(np.asarray(band_px, float), (2,))
-    info = {}
-    for radius in radii:
+    last = None
+    for stage, radius in enumerate(radii):
         # (the pixels of this stage's region only: the inner stages are small)
         sel = slice(None) if radius is None else np.flatnonzero(rad <= radius)
         xs_s, w_s, q_s = xs[sel], w[sel], q[sel]
         stage_free = free_idx if radius is None or radius > 0.5 * rad.max() else []
-        for _ in range(iterations):
+        for it in range(iterations):
             pa, pb = periods_px(Hc, f)
             ab = apply_h(Hc, q_s)
             fam_a, fam_b, ia, ib = assign_families(ab[:, 0], ab[:, 1], pa, pb, bands)
             if fam_a.sum() < 20 or fam_b.sum() < 20:
                 break
-            r = _residuals(Hc, q_s, fam_a, fam_b, ia, ib, pa, pb)
-            ww = np.concatenate([w_s[fam_a], w_s[fam_b]])
-            bw = np.concatenate([np.full(fam_a.sum(), bands[0]), np.full(fam_b.sum(), bands[1])])
-            ww = ww * np.clip(1 - (r / bw) ** 2, 0, None) ** 2  # Tukey biweight
-            J = _h_jacobian(Hc, q_s, fam_a, fam_b, pa, pb)
-            if stage_free:
-                J = np.column_stack([J, _lens_columns(Hc, xs_s, q_s, K, lens, fam_a, fam_b,
-                                                      pa, pb, stage_free)])
+            r, J, rows = _rows(Hc, q_s, xs_s, ab, fam_a, fam_b, ia, ib, pa, pb, K, lens,
+                               stage_free)
+            bw = np.full(len(rows), bands[1])
+            bw[:np.count_nonzero(fam_a)] = bands[0]
+            ww = w_s[rows] * np.clip(1 - (r / bw) ** 2, 0, None) ** 2  # Tukey biweight
             JW = J * ww[:, None]
             A = J.T @ JW
             g = -JW.T @ r
@@ -373,18 +372,23 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
                     g[8 + col] -= lam * (lens[j] - lens0[j])
             step = np.linalg.solve(A, g)
             Hc = Hc + np.append(step[:8], 0.0).reshape(3, 3)
+            last = (ww, r, fam_a, fam_b, ia, ib, step)
             if stage_free:
                 lens[stage_free] += step[8:]
+                if stage == len(radii) - 1 and it == iterations - 1:
+                    break  # (the pixels' positions are not needed after the last step)
                 q_s = _normalised(xs_s, K, lens)
-            info = {"rms_px": float(np.sqrt(np.sum(ww * r * r) / max(ww.sum(), 1e-12))),
-                    "n_a": int(fam_a.sum()), "n_b": int(fam_b.sum()),
-                    "lines_a": int(len(np.unique(ia[fam_a]))),
-                    "lines_b": int(len(np.unique(ib[fam_b]))),
-                    "step": float(np.abs(step[:8]).max())}
             if radius is not None and np.abs(J @ step).max() < STAGE_TOL_PX:
                 break  # a growing stage has only to land in the basin: the next refines
         if stage_free:  # the lens moved: every pixel's normalised position
             q = q_s if radius is None else _normalised(xs, K, lens)
+    info = {}
+    if last is not None:  # (of the last step made)
+        ww, r, fam_a, fam_b, ia, ib, step = last
+        info = {"rms_px": float(np.sqrt(np.sum(ww * r * r) / max(ww.sum(), 1e-12))),
+                "n_a": int(fam_a.sum()), "n_b": int(fam_b.sum()),
+                "lines_a": _n_distinct(ia[fam_a]), "lines_b": _n_distinct(ib[fam_b]),
+                "step": float(np.abs(step[:8]).max())}
     return Hc, _lens_K(K, lens), (float(lens[0]), float(lens[1])), info
 
 

@@ -18,7 +18,8 @@ def test_median_is_numpys(seed):
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_lens_derivatives_match_finite_differences(seed):
+def test_lattice_jacobian_matches_finite_differences(seed):
+    """Homography and lens columns of the calibration fit, against central differences."""
     rng = np.random.default_rng(seed)
     w, h = [(960, 540), (1920, 1080), (640, 480), (1280, 720)][seed]
     K = camera_matrix(w, h)
@@ -33,15 +34,25 @@ def test_lens_derivatives_match_finite_differences(seed):
     ab = apply_h(Hc, q)
     ia, ib = np.round(ab[:, 0]), np.round(ab[:, 1])
     pa, pb = lattice.periods_px(Hc, K[0, 0])
-    cols = lattice._lens_columns(Hc, xs, q, K, lens, fa, ~fa, pa, pb, [0, 1, 2, 3])
-    for j, e in enumerate([1e-6, 1e-6, 1e-3, 1e-3]):
-        lp, lm = lens.copy(), lens.copy()
-        lp[j] += e
-        lm[j] -= e
-        num = (lattice._residuals(Hc, lattice._normalised(xs, K, lp), fa, ~fa, ia, ib, pa, pb)
-               - lattice._residuals(Hc, lattice._normalised(xs, K, lm), fa, ~fa, ia, ib, pa,
-                                    pb)) / (2 * e)
-        np.testing.assert_allclose(cols[:, j], num, atol=1e-6 * np.abs(num).max())
+
+    def rows(Hc, lens, free=(0, 1, 2, 3)):
+        q = lattice._normalised(xs, K, lens)
+        return lattice._rows(Hc, q, xs, apply_h(Hc, q), fa, ~fa, ia, ib, pa, pb, K, lens,
+                             free)
+
+    r, J, order = rows(Hc, lens)
+    np.testing.assert_array_equal(order, np.r_[np.flatnonzero(fa), np.flatnonzero(~fa)])
+    for j in range(12):  # h0..h7 (Hc[2, 2] = 1 fixed), then k1, k2, cx, cy
+        e = [1e-6] * 10 + [1e-3] * 2
+        Hp, Hm, lp, lm = Hc.copy(), Hc.copy(), lens.copy(), lens.copy()
+        if j < 8:
+            Hp.flat[j] += e[j]
+            Hm.flat[j] -= e[j]
+        else:
+            lp[j - 8] += e[j]
+            lm[j - 8] -= e[j]
+        num = (rows(Hp, lp, ())[0] - rows(Hm, lm, ())[0]) / (2 * e[j])
+        np.testing.assert_allclose(J[:, j], num, atol=1e-6 * np.abs(num).max())
 
 
 @pytest.mark.parametrize("seed", range(4))
