@@ -51,8 +51,10 @@ def _fundamental_period(rel, w, normal, min_period, max_period):
     lo, hi = s.min(), s.max()
     if hi - lo < 2 * min_period:
         return None
-    bins = np.arange(lo, hi + 0.5, 0.5)
-    h, _ = np.histogram(s, bins=bins, weights=w)
+    n_bins = len(np.arange(lo, hi + 0.5, 0.5)) - 1
+    # (the histogram of equal 0.5 px bins from lo, the last one closed, by bincount)
+    h = np.bincount(np.minimum(((s - lo) * 2.0).astype(np.intp), n_bins - 1), w,
+                    minlength=n_bins)
     h = h - h.mean()
     n = 1 << int(np.ceil(np.log2(2 * len(h))))
     F = np.fft.rfft(h, n)
@@ -75,6 +77,18 @@ def _fundamental_period(rel, w, normal, min_period, max_period):
     return None
 
 
+def _phasors(grid, x):
+    """``exp(2 pi i g x)`` for an evenly spaced ``grid`` (n,) and points ``x`` (N,):
+    (n, N), from two exponentials and powers of the step's factor."""
+    out = np.empty((len(grid), len(x)), complex)
+    out[0] = np.exp(2j * np.pi * grid[0] * x)
+    if len(grid) > 1:
+        step = np.exp(2j * np.pi * (grid[1] - grid[0]) * x)
+        for i in range(1, len(grid)):
+            np.multiply(out[i - 1], step, out=out[i])
+    return out
+
+
 def _refine_wavevector(xs, w, k, n_steps: int = 5):
     """Refine a wave vector (cycles/px) and its phase by maximising |sum w exp(2 pi i k.x)|."""
     best_z, best_k = -1.0, np.asarray(k, float)
@@ -85,8 +99,7 @@ def _refine_wavevector(xs, w, k, n_steps: int = 5):
         # all (dx, dy) of the grid at once: exp(2 pi i (k + d).x) factorises into the
         # centre's term times one factor per axis, so the sums are one matrix product
         e0 = w * np.exp(2j * np.pi * (xs @ kc))
-        ex = np.exp(2j * np.pi * np.outer(grid, xs[:, 0]))
-        ey = np.exp(2j * np.pi * np.outer(grid, xs[:, 1]))
+        ex, ey = _phasors(grid, xs[:, 0]), _phasors(grid, xs[:, 1])
         Z = np.abs((ex * e0) @ ey.T)  # [dx index, dy index]
         i, j = np.unravel_index(np.argmax(Z), Z.shape)
         if Z[i, j] > best_z:
