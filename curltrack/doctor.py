@@ -334,9 +334,15 @@ def _geometry_checks(rep, rig, samples):
                                 "grid in the same frame)",
                                 "give [camera].height_m in the rig", {}))
         return
-    from .track.parallax import ICE_REFRACTIVE_INDEX
+    from .track.parallax import ICE_REFRACTIVE_INDEX, layout_scale_mismatch
 
     s = float(np.median(scales))
+    mismatch = layout_scale_mismatch(s, rig)
+    if mismatch:  # (track stops with this error)
+        rep.checks.append(Check("camera_height", "fail", mismatch,
+                                "fix [grid] spacing_x_m/spacing_y_m (and colors) or the "
+                                "[[markers]] positions in the rig", {"layout_scale": s}))
+        return
     h = rig.rock_height_m + rig.grid_depth_m / ICE_REFRACTIVE_INDEX
     H = h * s / (s - 1.0) if s > 1.0 else np.inf
     lo, hi = HEIGHT_RANGE_M

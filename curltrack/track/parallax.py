@@ -25,10 +25,31 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["similarity_fit", "camera_centre", "focal_for_height", "HeightEstimate",
-           "estimate_height", "correct_parallax", "ICE_REFRACTIVE_INDEX"]
+           "estimate_height", "correct_parallax", "layout_scale_mismatch",
+           "ICE_REFRACTIVE_INDEX", "LAYOUT_SCALE_RANGE"]
 
 #: Threads under ``depth`` of ice look ``depth / n`` deep (paraxial refraction).
 ICE_REFRACTIVE_INDEX = 1.31
+#: Plausible range of the markers' apparent layout scale against the grid,
+#: s = H / (H - h): 1.01-1.3 for a lens 0.5-10 m above 0.114 m markers.  A marker
+#: layout a few tens of % off in the rig only loses the parallax correction (a warning:
+#: the grid is the ruler); far outside, the grid's metric scale itself contradicts the
+#: rig - a wrong spacing, or every other thread invisible - and every position would be
+#: scaled wrong.
+LAYOUT_SCALE_RANGE = (0.7, 1.6)
+
+
+def layout_scale_mismatch(scale: float, rig) -> str:
+    """Why the apparent layout scale ``scale`` (median over frames) contradicts the rig,
+    or "" when it is plausible (:data:`LAYOUT_SCALE_RANGE`)."""
+    lo, hi = LAYOUT_SCALE_RANGE
+    if lo <= scale <= hi:
+        return ""
+    hint = (": is every other thread invisible (a thread colour like the ice)? Then give "
+            "the spacing and colour of the threads that show" if scale < 0.65 else "")
+    return (f"the markers measure {scale:.2f}x their rig layout against the grid (expected "
+            f"{lo:g}-{hi:g}): the rig's grid spacing ({rig.spacing_x_m:g} x "
+            f"{rig.spacing_y_m:g} m) or marker positions do not match the video{hint}")
 
 
 def similarity_fit(layout: np.ndarray, pts: np.ndarray):

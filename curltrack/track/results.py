@@ -10,7 +10,7 @@ from ..errors import TrackingError
 from ..rig import Rig
 from ..series import Series, make_meta
 from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, correct_parallax,
-                       estimate_height, focal_for_height)
+                       estimate_height, focal_for_height, layout_scale_mismatch)
 from .shotframe import to_shot_frame
 from .stops import detect_stops
 
@@ -122,6 +122,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         for i in np.flatnonzero(bad):
             records[i].status = "marker layout inconsistent with the rest of the video"
         ok &= ~bad
+        # every position would be scaled wrong: stop instead of writing them
+        mismatch = layout_scale_mismatch(float(np.median(scale[ok])), rig)
+        if mismatch:
+            raise TrackingError(mismatch, path=path, where=f"frames {frame[0]}-{frame[-1]}")
     if ok.sum() < MIN_MEASURED:
         span = f"frames {frame[0]}-{frame[-1]}" if n else None
         if n < MIN_MEASURED:

@@ -253,6 +253,47 @@ def test_wrong_marker_colours(cli, hdir, good_clip):
     assert "frame" in line
 
 
+@pytest.mark.parametrize("factor", [0.5, 2.0])
+def test_wrong_grid_spacing_stops_tracking(cli, hdir, good_clip, factor):
+    """A rig spacing 2x off scales every position by 2: the markers' layout, measured
+    against the grid, shows it; track and doctor fail instead of writing the series."""
+    from dataclasses import replace
+
+    video, _, rig = good_clip
+    wrong = hdir / f"spacing{factor}.toml"
+    wrong.write_text(replace(rig, spacing_x_m=factor * rig.spacing_x_m,
+                             spacing_y_m=factor * rig.spacing_y_m).to_toml())
+    out = hdir / f"spacing{factor}.csv"
+    line = cli.fails("track", video, "--rig", wrong, "-o", out, output=out,
+                     names=[video, "rig layout against the grid", "spacing"])
+    scale = float(line.split("the markers measure ")[1].split("x")[0])
+    assert 0.95 * factor < scale < 1.2 * factor, line  # (H / (H - h) ~ 1.05, times factor)
+    res = cli("doctor", video, "--rig", wrong)
+    assert res.exit_code == 1 and "rig layout against the grid" in res.stdout
+
+
+def test_invisible_alternate_threads_are_not_a_finer_grid(cli, hdir):
+    """Threads of the second colour as light as the ice: only every other thread shows,
+    the grid looks twice as coarse as the rig says - a clear error with the reason."""
+    from curltrack.rig import default_rig
+
+    rig = replace_colours(default_rig(), ("#202020", "#e0e0e0"))
+    video, _, _ = render_clip(hdir / "white_threads.mp4", rig=rig, seed=21, size=(960, 540))
+    rig_path = hdir / "white_threads.toml"
+    rig_path.write_text(rig.to_toml())
+    out = hdir / "white_threads.csv"
+    line = cli.fails("track", video, "--rig", rig_path, "-o", out, output=out,
+                     names=[video, "every other thread invisible"])
+    scale = float(line.split("the markers measure ")[1].split("x")[0])
+    assert 0.45 < scale < 0.6, line
+
+
+def replace_colours(rig, colours):
+    from dataclasses import replace
+
+    return replace(rig, grid_colors=tuple(colours))
+
+
 @pytest.mark.parametrize("rate_deg_per_s", [12.0, -20.0])
 def test_slow_camera_turn_is_measured(cli, hdir, rig_file, wide_clip, rate_deg_per_s):
     video, truth, _ = wide_clip
