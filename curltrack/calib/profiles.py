@@ -25,6 +25,11 @@ from .lens import apply_h, project, undistort
 
 
 BOX = 0.25
+#: A predicted lattice whose homogeneous scale varies over the frame by more than this
+#: factor (a horizon in or near the view: a camera tilted ~60 deg, or a diverged fit)
+#: is not sampled.
+MAX_PERSPECTIVE = 0.25
+_REMAP_COLUMNS = 32000
 
 
 def _box(a, k):
@@ -179,7 +184,14 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
 
     h, w = image_bgr.shape[:2]
     f = K[0, 0]
-    ab_edge = apply_h(Hc, _frame_edge(w, h, tuple(K.ravel()), tuple(dist)))
+    q_edge = _frame_edge(w, h, tuple(K.ravel()), tuple(dist))
+    # the homogeneous scale over the frame: a horizon in (or near) the view means a
+    # degenerate prediction (a diverged fit) that would map the frame onto endless threads
+    w_edge = q_edge @ Hc[2, :2] + Hc[2, 2]
+    if not (w_edge.min() * w_edge.max() > 0
+            and np.abs(w_edge).min() > MAX_PERSPECTIVE * np.abs(w_edge).max()):
+        return None
+    ab_edge = apply_h(Hc, q_edge)
     if not np.all(np.isfinite(ab_edge)):
         return None  # a degenerate prediction (the view folds over): nothing to sample
     lo, hi = ab_edge.min(axis=0), ab_edge.max(axis=0)
@@ -239,8 +251,11 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     t = (2.0 * frac - 1.0) * half[:, None].astype(np.float32)  # px along the profile
     # (sample-major: remap is much faster on a few long rows than on many short ones)
     c32, d32, tT = centre.astype(np.float32).T, dirv.astype(np.float32).T, t.T
-    prof = cv2.remap(image_bgr, c32[0] + tT * d32[0], c32[1] + tT * d32[1],
-                     cv2.INTER_LINEAR)  # (S, N, 3) uint8
+    mx, my = c32[0] + tT * d32[0], c32[1] + tT * d32[1]
+    # (S, N, 3) uint8; OpenCV's remap takes maps under 32767 columns
+    prof = np.concatenate([cv2.remap(image_bgr, mx[:, i:i + _REMAP_COLUMNS],
+                                     my[:, i:i + _REMAP_COLUMNS], cv2.INTER_LINEAR)
+                           for i in range(0, mx.shape[1], _REMAP_COLUMNS)], axis=1)
     # Consecutive profiles of a thread are averaged over segments (longer when blurred:
     # a smeared thread is faint in any one profile but straight over a long stretch).
     # The profiles come ordered by family, thread and position along it.

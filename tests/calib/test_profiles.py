@@ -91,3 +91,31 @@ def test_apply_h_opencv_path_is_the_formula():
         out = apply_h(Hh, ph)
     assert not np.isfinite(out[0]).any()
     assert np.isfinite(out[1:]).all()
+
+
+def test_degenerate_prediction_samples_nothing(frame_and_calibration):
+    """A diverged fit whose horizon crosses the frame (seen after a lost grid: a coarse
+    snap onto a few wrong points) is not sampled - it maps the frame onto ~10^5 threads."""
+    img, cal, rig = frame_and_calibration
+    Hc = cells_from_metric(cal.H, cal.K, rig.spacing_x_m, rig.spacing_y_m)
+    bad = Hc.copy()
+    bad[2] = (-1.55 * Hc[2, 2], -2.08 * Hc[2, 2], Hc[2, 2])  # w = 0 inside the frame
+    assert sample_threads(img, bad, cal.K, cal.dist, cal.colour_model, (5.0, 5.0),
+                          max_profiles=640) is None
+    steep = Hc.copy()
+    steep[2] = (1.8 * Hc[2, 2], 0.0, Hc[2, 2])  # w from ~0.2 to ~1.8: near the horizon
+    assert sample_threads(img, steep, cal.K, cal.dist, cal.colour_model, (5.0, 5.0)) is None
+
+
+def test_more_profiles_than_one_remap_takes(frame_and_calibration):
+    """Over 32767 profiles (a dense coarse search at high resolution) are sampled in
+    pieces (one OpenCV remap takes fewer), and give the homography back."""
+    img, cal, rig = frame_and_calibration
+    Hc = cells_from_metric(cal.H, cal.K, rig.spacing_x_m, rig.spacing_y_m)
+    args = (img, Hc, cal.K, cal.dist, cal.colour_model, (5.0, 5.0))
+    dense = sample_threads(*args, step_px=0.4, seg_px=0.4, gap_px=(5.0, 5.0))
+    assert dense.n_profiles > 32767
+    assert min(dense.found) > 0.9
+    fit, _ = fit_points(dense.xy, dense.w, dense.fam, dense.idx, Hc, cal.K, cal.dist,
+                        q=dense.q)
+    assert _px_error(fit, Hc, cal.K[0, 0]) < 0.1
