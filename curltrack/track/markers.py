@@ -110,6 +110,11 @@ class MarkerDetector:
     rig: Rig
     colors_lab: np.ndarray = field(init=False)
     area_px: float | None = field(default=None, init=False)
+    #: The markers' area (px^2) when first found: the running ``area_px`` stays within a
+    #: factor 2 of it (the camera's height changes little during a shot), so that what
+    #: hides the rock for a while - a broom head taken for a marker - cannot teach it a
+    #: size that excludes the real markers.
+    area_ref_px: float | None = field(default=None, init=False)
 
     def __post_init__(self):
         self.layout_m = np.array([[m.x_m, m.y_m] for m in self.rig.markers])
@@ -149,6 +154,11 @@ class MarkerDetector:
         return bool(d[c] <= d.min() and d[c] < 0.25 * np.sum((protos[c] - protos[-1]) ** 2))
 
     # --- public ------------------------------------------------------------------------
+    def forget(self) -> None:
+        """Back to the first frame's knowledge: the rig's colours and marker size."""
+        self.colors_lab = self.ref_lab.copy()
+        self.area_px = self.area_ref_px
+
     def refine_at(self, image_bgr: np.ndarray, predicted: np.ndarray) -> MarkerFrame | None:
         """Markers measured directly around well-predicted positions, or None.
 
@@ -192,7 +202,7 @@ class MarkerDetector:
             if abs(d_now - d_pred) > 0.03 * d_pred + 1.0:
                 self.colors_lab = saved
                 return None
-        self.area_px = 0.9 * self.area_px + 0.1 * float(median(area))
+        self._learn_area(float(median(area)))
         return MarkerFrame(xy, sig, area, con, "")
 
     def detect(self, image_bgr: np.ndarray, predicted: np.ndarray | None = None,
@@ -258,9 +268,16 @@ class MarkerDetector:
         missing = [self.rig.markers[i].color for i in range(M) if not np.isfinite(xy[i, 0])]
         msg = f"marker(s) {', '.join(missing)} not found" if missing else ""
         if not missing:
-            self.area_px = (float(np.median(area)) if self.area_px is None
-                            else 0.9 * self.area_px + 0.1 * float(np.median(area)))
+            self._learn_area(float(np.median(area)))
         return MarkerFrame(xy, sig, area, con, msg)
+
+    def _learn_area(self, area: float) -> None:
+        """Fold one frame's marker area (px^2) into the running size (see area_ref_px)."""
+        if self.area_px is None or self.area_ref_px is None:
+            self.area_px = self.area_ref_px = area
+            return
+        self.area_px = float(np.clip(0.9 * self.area_px + 0.1 * area,
+                                     0.5 * self.area_ref_px, 2.0 * self.area_ref_px))
 
     def _candidates(self, image_bgr, box, step):
         """Per colour class: up to 6 blobs (centroids px, areas px^2, full-image units)
@@ -280,8 +297,10 @@ class MarkerDetector:
             n, _, stats, cents = cv2.connectedComponentsWithStats(mask.view(np.uint8), 8)
             areas = stats[1:, cv2.CC_STAT_AREA].astype(float) * step ** 2
             xy = cents[1:] * step + (0.5 * (step - 1) + x0, 0.5 * (step - 1) + y0)
-            min_area = 3.0 if self.area_px is None else max(3.0, 0.25 * self.area_px)
-            keep = areas >= min_area
+            if self.area_px is None:
+                keep = areas >= 3.0
+            else:  # (a marker-coloured patch of ice or broom much larger is not one)
+                keep = (areas >= max(3.0, 0.25 * self.area_px)) & (areas <= 4.0 * self.area_px)
             order = np.argsort(-areas[keep])[:6]
             cands.append((xy[keep][order], areas[keep][order]))
         return cands

@@ -86,6 +86,13 @@ class _Follower:
                 self.lost += 1
                 return None
             mf = self.det.detect(image)
+            if not mf.found.all() and self.lost > 3:
+                # Lost for a while: the size and colours learnt may have drifted onto
+                # what hid the rock (a broom head passes for a marker of 5x the area,
+                # and the real ones are then too small to be candidates): look again
+                # as on the first frame.
+                self.det.forget()
+                mf = self.det.detect(image)
         elif (mf := self.det.refine_at(image, pred)) is not None:
             pass  # measured where predicted: no search needed
         else:

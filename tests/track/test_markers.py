@@ -104,3 +104,36 @@ def test_refine_at_refuses_what_does_not_fit():
     # a prediction on bare ice
     assert det.refine_at(img, truth + 40.0) is None
     np.testing.assert_array_equal(det.colors_lab, colours)  # the colour model untouched
+
+
+def test_marker_size_cannot_be_taught_by_what_hides_the_rock():
+    """A broom head taken for a marker frame after frame (5x the area) moves the running
+    marker size by at most 2x from the first frame's; blobs over 4x that size are not
+    candidates; forget() goes back to the rig's colours and the first size - and the
+    markers are found again."""
+    rng = np.random.default_rng(7)
+    rig = default_rig()
+    img, truth, _ = _scene(rng, rig, seed=7)
+    det = MarkerDetector(rig)
+    assert det.detect(img).found.all()
+    first = det.area_ref_px
+    for _ in range(40):
+        det._learn_area(5.0 * first)
+    assert det.area_px == pytest.approx(2.0 * first)
+    det.colors_lab += 30.0  # (colours drifted too)
+    det.forget()
+    assert det.area_px == first and np.array_equal(det.colors_lab, det.ref_lab)
+    mf = det.detect(img)
+    assert mf.found.all() and np.hypot(*(mf.xy_px - truth).T).max() < 0.1
+    # a marker-coloured patch 6x a marker's area is no candidate, one of 2x is
+    import cv2
+
+    big, small = img.copy(), img.copy()
+    r = np.sqrt(first / np.pi)
+    colour = parse_color(rig.markers[0].color)[::-1]
+    for im, f in ((big, 6.0), (small, 2.0)):
+        cv2.circle(im, (40, 40), int(round(r * np.sqrt(f))), colour, -1, cv2.LINE_AA)
+    cls = det.class_of[0]
+    near = lambda im: [xy for xy in det._candidates(im, (0, 0, 120, 120), 1)[cls][0]
+                       if np.hypot(*(xy - 40)) < 3]
+    assert not near(big) and near(small)
