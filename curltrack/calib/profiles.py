@@ -130,6 +130,19 @@ class ThreadPoints:
     n_profiles: int
     found: list
     _colour_of: object = field(default=None, repr=False)
+    _stretches: tuple = field(default=(), repr=False)  # (fam, line, found) of every stretch
+
+    def found_best_class(self, n: int) -> list:
+        """As ``found``, for the threads of one class of index modulo ``n`` - the class
+        whose threads were found most often: with ``n`` thread colours in sequence, the
+        fraction of the best-seen colour (one colour may be faint against the ice)."""
+        if n < 2 or not self._stretches:
+            return self.found
+        fam, line, hit = self._stretches
+        cls = np.mod(line, n).astype(np.intp) + n * fam
+        rate = (np.bincount(cls, hit, minlength=2 * n)
+                / np.maximum(np.bincount(cls, minlength=2 * n), 1)).reshape(2, n)
+        return rate.max(axis=1).tolist()
 
     @functools.cached_property
     def colour(self):
@@ -345,4 +358,5 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
                         q=(q_g + off[:, None] * dq)[sel],
                         w=(s_sum * counts)[sel], fam=fam[sel], idx=line[sel].astype(int),
                         noise=float(np.max(noise)), n_profiles=int(len(sel)),
-                        found=found.tolist(), _colour_of=colour_of)
+                        found=found.tolist(), _colour_of=colour_of,
+                        _stretches=(fam, line, sel))

@@ -53,7 +53,18 @@ SHUTTER = 0.5  # assumed exposure (fraction of a frame) for the motion-blur filt
 #: shaking hand moves the view by a few px to ~0.2 cell per frame; a larger move would
 #: rather be a wrong anchor, and the cell index must not rest on it.
 ANCHOR_MAX_CELLS = 0.3
+#: ... and after frames without a grid (a broom, a blur), when the camera's own motion
+#: prediction has gone stale: the rock's path on the ice is then the better guide.
+ANCHOR_MAX_CELLS_STALE = 1.5
+STALE_FRAMES = 3  # frames since the last grid after which the motion prediction holds
 TURN_RETRIES_DEG = (4.0, -4.0, 8.0, -8.0)  # camera turns tried when the grid is lost
+#: A frame whose thread points miss the fitted lattice by more than POOR_FIT_FACTOR x
+#: the typical residual of the last POOR_FIT_FRAMES accepted frames (and by more than
+#: POOR_FIT_MIN_PX) is not measured: on rendered handheld shots with a broom and a faint
+#: thread colour such fits (1.0-1.4 px against 0.3 typical) put the rock 4-24 mm off.
+POOR_FIT_FACTOR = 2.5
+POOR_FIT_MIN_PX = 0.6
+POOR_FIT_FRAMES = 30
 #: A coarse snap is trusted only when at least this fraction of its profiles (in each
 #: family) found a thread: right snaps find >= 0.9, snaps onto the wrong lattice
 #: alignment after a sudden camera turn 0.1-0.3 (measured on erratic turns of +-30 deg).
@@ -64,6 +75,9 @@ MIN_FOUND_SNAP = 0.5
 #: shows as ~0.75 found and a homography ~1 px off (rendered handheld_fast, frame 9:
 #: 2.6 mm); steady frames find >= 0.9.
 MIN_FOUND_FINE = 0.8
+#: ... but one that found at least this fraction is kept when the snap does worse
+#: (threads of a colour faint against the ice are found by the fine profiles only).
+MIN_FOUND_FALLBACK = 0.6
 
 
 def _origin(Hc):
@@ -152,6 +166,7 @@ class GridTracker:
         self._history: list[tuple] = [(None, calib.H, apply_h(calib.H, self._ref))]
         self._centre_h = np.append(c, 1.0)  # principal point, homogeneous
         self._pred_err_px = 0.0  # running size of the prediction error (px)
+        self._rms_px: list[float] = []  # fit residuals of the last accepted frames (px)
 
     # -- prediction ------------------------------------------------------------------
     def _predict(self, index: int) -> np.ndarray:
@@ -160,19 +175,22 @@ class GridTracker:
         if len(hist) < 2 or hist[-2][0] is None:
             return hist[-1][1]
         (i0, _, P0), (i1, H1, P1) = hist[-2], hist[-1]
+        if index - i1 > STALE_FRAMES:
+            return H1  # (a shaking camera's velocity means nothing that far ahead)
         import cv2
 
         P = P1 + (P1 - P0) * (index - i1) / max(i1 - i0, 1)
         return cv2.getPerspectiveTransform(self._ref.astype(np.float32),
                                            P.astype(np.float32)).astype(float)
 
-    def _anchored(self, H_pred, px_u, ice_pred) -> np.ndarray:
+    def _anchored(self, H_pred, px_u, ice_pred, max_cells=ANCHOR_MAX_CELLS) -> np.ndarray:
         """``H_pred`` moved on the ice so that it maps ``px_u`` (undistorted px) onto
-        ``ice_pred`` (on average), or unchanged when that move is large or not finite."""
+        ``ice_pred`` (on average), or unchanged when that move is over ``max_cells`` or
+        not finite."""
         seen = apply_h(H_pred, np.asarray(px_u, float))
         d = np.mean(np.asarray(ice_pred, float) - seen, axis=0)
         cells = np.abs(d) / (self.sx, self.sy)
-        if not np.all(np.isfinite(d)) or np.max(cells) > ANCHOR_MAX_CELLS:
+        if not np.all(np.isfinite(d)) or np.max(cells) > max_cells:
             return H_pred
         return np.array([[1.0, 0.0, d[0]], [0.0, 1.0, d[1]], [0.0, 0.0, 1.0]]) @ H_pred
 
@@ -254,7 +272,10 @@ class GridTracker:
                                 where=f"frame {index}")
         H_pred = self._predict(index)
         if anchor is not None:
-            H_pred = self._anchored(H_pred, *anchor)
+            last = self._history[-1][0]
+            stale = last is not None and index - last > STALE_FRAMES
+            H_pred = self._anchored(H_pred, *anchor, max_cells=(
+                ANCHOR_MAX_CELLS_STALE if stale else ANCHOR_MAX_CELLS))
         Hc_pred = cells_from_metric(H_pred, K, self.sx, self.sy)
 
         def failed(msg):
@@ -263,14 +284,24 @@ class GridTracker:
         motion = self._motion_px(H_pred, index)
         smooth = (len(self._history) >= 2 and self._history[-2][0] is not None
                   and self._pred_err_px < 4.0)
+        fallback = None  # a fine measurement plausible enough to keep if the snap fails
         for attempt in ((False, True) if smooth else (True,)):
             Hc, info, obs = self._measure(image_bgr, Hc_pred, mask, motion, coarse=attempt)
-            if info is None:
+            if info is None or attempt:
                 continue
             moved = np.abs(_origin(Hc) - _origin(Hc_pred)) * periods_px(Hc, f)
             # without the coarse snap the profiles see only +-FINE_HALF_PX around it
-            if attempt or (moved.max() < FINE_HALF_PX - 2.0 and info["ok_fraction"] > MIN_FOUND_FINE):
-                break
+            if moved.max() < FINE_HALF_PX - 2.0:
+                if info["ok_fraction"] > MIN_FOUND_FINE:
+                    break
+                if info["ok_fraction"] > MIN_FOUND_FALLBACK:
+                    fallback = Hc, info, obs
+        n_col = self.calib.n_colors if self.calib.colors_resolved else 0
+        if attempt and fallback is not None and (
+                info is None or min(obs.found_best_class(n_col)) < MIN_FOUND_SNAP):
+            # the snap found less (faint threads of one colour are missed by the wide
+            # profiles, a broom hides some): the fine measurement stands
+            (Hc, info, obs), attempt = fallback, False
         if info is None:
             for retry in _retry_predictions(Hc_pred):
                 Hc, info, obs = self._measure(image_bgr, retry, mask, motion, coarse=True)
@@ -282,9 +313,18 @@ class GridTracker:
             return failed("grid not visible (fewer than 2 threads in a family)")
         if attempt and info["ok_fraction"] < MIN_FOUND_SNAP:
             # A snap from a poor prediction that found few of the threads it expected has
-            # locked onto something else than the lattice (e.g. after a sudden turn).
-            return failed(f"grid not followed (a snap found only "
-                          f"{100 * info['ok_fraction']:.0f} % of the expected threads)")
+            # locked onto something else than the lattice (e.g. after a sudden turn) -
+            # unless it found the threads of one colour: then the others are just faint
+            # (a thread colour close to the ice's, blurred across) and it stands.
+            n = self.calib.n_colors if self.calib.colors_resolved else 0
+            if min(obs.found_best_class(n)) < MIN_FOUND_SNAP:
+                return failed(f"grid not followed (a snap found only "
+                              f"{100 * info['ok_fraction']:.0f} % of the expected threads)")
+        if len(self._rms_px) >= 5:
+            typical = float(np.median(self._rms_px))
+            if info["rms_px"] > max(POOR_FIT_MIN_PX, POOR_FIT_FACTOR * typical):
+                return failed(f"grid fit poor (thread residual {info['rms_px']:.2f} px, "
+                              f"{typical:.2f} px typical)")
         jump = _origin(Hc) - _origin(Hc_pred)
         n = self.calib.n_colors if self.calib.colors_resolved else 0
         # The colours are read when the index could have slipped (a coarse snap, a large
@@ -313,6 +353,7 @@ class GridTracker:
             return pose
         err = float(np.hypot(*(np.asarray(jump) * (pa, pb))))
         self._pred_err_px = 0.5 * self._pred_err_px + 0.5 * err
+        self._rms_px = (self._rms_px + [info["rms_px"]])[-POOR_FIT_FRAMES:]
         self._history = (self._history + [(index, H, apply_h(H, self._ref))])[-2:]
         return pose
 

@@ -28,6 +28,10 @@ __all__ = ["track_video", "FrameRecord"]
 SEARCH_EVERY = 5
 #: Frames without markers (from the start) after which the video is declared unusable.
 GIVE_UP_FRAMES = 90
+#: Largest gap (frames) over which the rock's ice position is extrapolated to anchor the
+#: grid's prediction: 0.4 s at 30 fps, where a curling rock's deceleration (~0.1 m/s^2)
+#: moves it < 1 cm from its constant-velocity path - well under a cell.
+ANCHOR_MAX_GAP = 12
 
 
 @dataclass
@@ -143,11 +147,12 @@ class _Follower:
 def _anchor(markers_ice, markers_px, frame):
     """The markers seen in ``frame`` (undistorted px) and their positions on the ice
     extrapolated from the last two measured frames (constant velocity; the rock's motion
-    is smooth), for :meth:`GridTracker.update`; None without two recent frames."""
+    is smooth), for :meth:`GridTracker.update`; None without two frames measured in the
+    last ANCHOR_MAX_GAP."""
     if len(markers_ice) < 2:
         return None
     (f0, p0), (f1, p1) = markers_ice
-    if frame - f1 > 3:
+    if frame - f1 > ANCHOR_MAX_GAP:
         return None
     return markers_px, p1 + (p1 - p0) * (frame - f1) / (f1 - f0)
 
