@@ -251,11 +251,13 @@ class GridTracker:
         mask : (H, W) uint8, optional
             Nonzero = ignore (the rock disc and its surroundings, a broom).
         anchor : ((M, 2), (M, 2)) arrays, optional
-            Points seen in this frame (undistorted px, :func:`~.lens.undistort`) and where
-            they are predicted on the ice (lattice-frame m): the rock's markers, whose motion on the ice is smooth
-            even when the camera's is not.  The motion prediction is moved so that it
-            maps the one onto the other (by less than ``ANCHOR_MAX_CELLS``, else the
-            anchor is ignored), which follows a shaking camera without a coarse search.
+            Points seen in this frame (undistorted px, :func:`~.lens.undistort`) and
+            where they are predicted on the ice (lattice-frame m): the rock's markers,
+            whose motion on the ice is smooth even when the camera's is not.  The motion
+            prediction is moved so that it maps the one onto the other (by less than
+            ``ANCHOR_MAX_CELLS``, ``ANCHOR_MAX_CELLS_STALE`` after STALE_FRAMES without a
+            grid; else the anchor is ignored), which follows a shaking camera without a
+            coarse search and re-finds the grid after a loss.
 
         Returns
         -------

@@ -166,8 +166,9 @@ class MarkerDetector:
         classified blob (no colour classification of a search window).  Accepted only
         when every marker is found within half a marker radius (+1 px) of where the
         refinement started (the prediction, or once more where that converged; within
-        :meth:`detect`'s gate of the prediction), with the expected size and colour class, and the markers' mutual
-        distances agree with the prediction's to 3 % (+1 px); otherwise None and the
+        :meth:`detect`'s gate of the prediction), with the expected size and colour
+        class, and the markers' mutual distances agree with the prediction's to 3 %
+        (+1 px); otherwise None and the
         caller runs :meth:`detect`.
 
         Parameters
