@@ -143,10 +143,11 @@ def bench_track(quick: bool) -> dict:
         except Exception as exc:  # one failed set-up is a result, not the end of the run
             rows.append({**s, "error": f"{type(exc).__name__}: {exc}"})
     out = {"setups": rows}
-    # speed: track fps / decode-only fps of the same rendered video, in one run
+    # speed: track fps / decode-only fps of the same rendered video, in one run (the same
+    # 5 s clips and repeats in --quick: a shorter clip weighs the one-off calibration more
+    # and would measure something else than the target's row)
     for w, h in ((960, 540), (1920, 1080)):
-        out[f"speed_{h}p"] = bt.bench_speed(w, h, n_frames=90 if quick else 150,
-                                            threads=THREADS, repeats=1 if quick else 3)
+        out[f"speed_{h}p"] = bt.bench_speed(w, h, n_frames=150, threads=THREADS, repeats=3)
     if not quick:  # a whole shot, as filmed: the one-off costs spread over ~700 frames
         out["speed_540p_draw"] = bt.bench_speed(960, 540, n_frames=None, full_draw=True,
                                                 threads=THREADS, repeats=3)
