@@ -307,7 +307,7 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
     Hc = np.array([[A[0, 0] * f, A[0, 1] * f, A[0, 2]], [A[1, 0] * f, A[1, 1] * f, A[1, 2]],
                    [0.0, 0.0, 1.0]])
     half_diag = np.hypot(w, h) / 2
-    radii = [0.3 * half_diag, 0.5 * half_diag, 0.7 * half_diag, 0.85 * half_diag, None]
+    radii = [0.3 * half_diag, 0.5 * half_diag, 0.7 * half_diag, None]
     dist = (0.0, 0.0)
     # The region growing only has to land in the right basin: a fixed subsample of the
     # thread pixels does that at a fraction of the cost; the final fit uses them all.
