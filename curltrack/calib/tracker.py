@@ -318,8 +318,7 @@ class GridTracker:
             # locked onto something else than the lattice (e.g. after a sudden turn) -
             # unless it found the threads of one colour: then the others are just faint
             # (a thread colour close to the ice's, blurred across) and it stands.
-            n = self.calib.n_colors if self.calib.colors_resolved else 0
-            if min(obs.found_best_class(n)) < MIN_FOUND_SNAP:
+            if min(obs.found_best_class(n_col)) < MIN_FOUND_SNAP:
                 return failed(f"grid not followed (a snap found only "
                               f"{100 * info['ok_fraction']:.0f} % of the expected threads)")
         if len(self._rms_px) >= 5:
@@ -328,11 +327,10 @@ class GridTracker:
                 return failed(f"grid fit poor (thread residual {info['rms_px']:.2f} px, "
                               f"{typical:.2f} px typical)")
         jump = _origin(Hc) - _origin(Hc_pred)
-        n = self.calib.n_colors if self.calib.colors_resolved else 0
         # The colours are read when the index could have slipped (a coarse snap, a large
         # correction) and every COLOUR_CHECK_EVERY frames as a confirmation.
         if attempt or np.abs(jump).max() > 0.15 or index % COLOUR_CHECK_EVERY == 0:
-            k, note, ambiguous, confirmed = self._colour_correction(obs, jump, n)
+            k, note, ambiguous, confirmed = self._colour_correction(obs, jump, n_col)
         else:
             k, note, ambiguous, confirmed = np.zeros(2), "", False, [False, False]
         Hc = np.array([[1.0, 0, k[0]], [0, 1.0, k[1]], [0, 0, 1]]) @ Hc
