@@ -33,13 +33,17 @@ from .lens import apply_h, camera_matrix, distort, undistort
 from .response import ColourModel, candidate_pixels, local_contrast, thread_response
 
 
-def image_yaw_deg(H, K, dist, pt_px=None) -> float:
+def image_yaw_deg(H, K, dist, pt_px=None):
     """Direction (deg, CCW from the lattice's +x) of the image's +u axis at ``pt_px``
     (observed px; default the principal point), through the image -> ice homography
-    ``H`` (undistorted px -> m) and the lens ``K``, ``dist``."""
+    ``H`` (undistorted px -> m) and the lens ``K``, ``dist``.  A stack of homographies
+    (..., 3, 3) gives one direction each (an array)."""
     c = K[:2, 2] if pt_px is None else np.asarray(pt_px, float)
-    a, b = apply_h(H, undistort(np.array([c, c + (20.0, 0.0)]), K, dist))
-    return float(np.degrees(np.arctan2(b[1] - a[1], b[0] - a[0])))
+    ends = np.c_[undistort(np.array([c, c + (20.0, 0.0)]), K, dist), np.ones(2)]
+    a, b = np.moveaxis(np.einsum("...ij,kj->...ki", np.asarray(H, float), ends), -2, 0)
+    d = b[..., :2] / b[..., 2:] - a[..., :2] / a[..., 2:]
+    yaw = np.degrees(np.arctan2(d[..., 1], d[..., 0]))
+    return float(yaw) if yaw.ndim == 0 else yaw
 
 
 def lattice_turn_deg(yaw_from_deg, yaw_to_deg):

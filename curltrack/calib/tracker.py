@@ -299,8 +299,15 @@ class GridTracker:
                 if info["ok_fraction"] > MIN_FOUND_FALLBACK:
                     fallback = Hc, info, obs
         n_col = self.calib.n_colors if self.calib.colors_resolved else 0
-        if attempt and fallback is not None and (
-                info is None or min(obs.found_best_class(n_col)) < MIN_FOUND_SNAP):
+
+        def weak_snap(obs):
+            # A snap that found few of the threads it expected has locked onto something
+            # else than the lattice (e.g. after a sudden turn) - unless it found the
+            # threads of one colour: then the others are just faint (a thread colour
+            # close to the ice's, blurred across).
+            return min(obs.found_best_class(n_col)) < MIN_FOUND_SNAP
+
+        if attempt and fallback is not None and (info is None or weak_snap(obs)):
             # the snap found less (faint threads of one colour are missed by the wide
             # profiles, a broom hides some): the fine measurement stands
             (Hc, info, obs), attempt = fallback, False
@@ -313,14 +320,9 @@ class GridTracker:
             return failed("grid not visible (too few thread points)")
         if info["lines_a"] < 2 or info["lines_b"] < 2:
             return failed("grid not visible (fewer than 2 threads in a family)")
-        if attempt and info["ok_fraction"] < MIN_FOUND_SNAP:
-            # A snap from a poor prediction that found few of the threads it expected has
-            # locked onto something else than the lattice (e.g. after a sudden turn) -
-            # unless it found the threads of one colour: then the others are just faint
-            # (a thread colour close to the ice's, blurred across) and it stands.
-            if min(obs.found_best_class(n_col)) < MIN_FOUND_SNAP:
-                return failed(f"grid not followed (a snap found only "
-                              f"{100 * info['ok_fraction']:.0f} % of the expected threads)")
+        if attempt and weak_snap(obs):
+            return failed(f"grid not followed (a snap found only "
+                          f"{100 * info['ok_fraction']:.0f} % of the expected threads)")
         if len(self._rms_px) >= 5:
             typical = float(np.median(self._rms_px))
             if info["rms_px"] > max(POOR_FIT_MIN_PX, POOR_FIT_FACTOR * typical):

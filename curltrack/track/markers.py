@@ -130,10 +130,15 @@ class MarkerDetector:
                                    ).reshape(-1, 3)
 
     # --- classification --------------------------------------------------------------
+    def _prototypes(self, bg_lab: np.ndarray) -> np.ndarray:
+        """Weighted Lab prototypes: the marker colour classes, the threads, the
+        background ``bg_lab`` (last)."""
+        return _weigh(np.vstack([self._class_mean @ self.colors_lab, self.thread_lab,
+                                 np.reshape(bg_lab, (1, 3))]))
+
     def _class_masks(self, lab: np.ndarray, bg_lab: np.ndarray) -> list[np.ndarray]:
         """One boolean mask per marker colour class (nearest-prototype rule)."""
-        protos = _weigh(np.vstack([self._class_mean @ self.colors_lab, self.thread_lab,
-                                   bg_lab[None]]))
+        protos = self._prototypes(bg_lab)
         w = _weigh(lab).reshape(-1, 3)
         # squared distances to every prototype, |w|^2 - 2 w.p + |p|^2, as one product
         d = ((w * w).sum(axis=1)[:, None] - 2.0 * (w @ protos.T)
@@ -148,9 +153,8 @@ class MarkerDetector:
     def _is_class(self, obs_lab, bg_lab, i) -> bool:
         """The nearest-prototype rule of :meth:`_class_masks` for one colour."""
         c = self.class_of[i]
-        protos = np.vstack([self._class_mean @ self.colors_lab, self.thread_lab, bg_lab])
-        protos[:, 0] *= _L_WEIGHT
-        d = np.sum((protos - obs_lab * (_L_WEIGHT, 1.0, 1.0)) ** 2, axis=1)
+        protos = self._prototypes(bg_lab)
+        d = np.sum((protos - _weigh(obs_lab)) ** 2, axis=1)
         return bool(d[c] <= d.min() and d[c] < 0.25 * np.sum((protos[c] - protos[-1]) ** 2))
 
     # --- public ------------------------------------------------------------------------
@@ -168,8 +172,7 @@ class MarkerDetector:
         refinement started (the prediction, or once more where that converged; within
         :meth:`detect`'s gate of the prediction), with the expected size and colour
         class, and the markers' mutual distances agree with the prediction's to 3 %
-        (+1 px); otherwise None and the
-        caller runs :meth:`detect`.
+        (+1 px); otherwise None and the caller runs :meth:`detect`.
 
         Parameters
         ----------

@@ -68,19 +68,13 @@ def camera_turn(records, calib) -> tuple[np.ndarray, np.ndarray]:
     differenced modulo 90 deg (:func:`~curltrack.calib.grid.lattice_turn_deg`) and
     divided by the frame gap.  Returns (frame of the later record, rate).
     """
-    from ..calib.grid import lattice_turn_deg
-    from ..calib.lens import undistort
+    from ..calib.grid import image_yaw_deg, lattice_turn_deg
 
     used = [r for r in records if r.status == "" and r.H is not None]
     if len(used) < 2:
         return np.zeros(0, int), np.zeros(0)
     frames = np.array([r.frame for r in used])
-    # image_yaw_deg of every homography at once: the image +u step at the principal point
-    c = calib.K[:2, 2]
-    ends = np.c_[undistort(np.array([c, c + (20.0, 0.0)]), calib.K, calib.dist), np.ones(2)]
-    a, b = np.einsum("nij,kj->nki", np.array([r.H for r in used]), ends).transpose(1, 0, 2)
-    d = b[:, :2] / b[:, 2:] - a[:, :2] / a[:, 2:]
-    yaw = np.degrees(np.arctan2(d[:, 1], d[:, 0]))
+    yaw = image_yaw_deg(np.array([r.H for r in used]), calib.K, calib.dist)
     rate = np.abs(lattice_turn_deg(yaw[:-1], yaw[1:])) / np.diff(frames)
     if rate.size >= 3:
         # running median of 3: the max of raw rates is biased up by the homography's
