@@ -58,20 +58,20 @@ def check_outputs(inputs, outputs) -> None:
             continue
         out = Path(out)
         for inp in ins:
-            if _same_file(out, inp):
+            if same_file(out, inp):
                 raise CurltrackError(f"would overwrite the input {inp}", path=out, where=option)
         try:
             check_writable(out)
         except CurltrackError as exc:
             raise CurltrackError(exc.message, path=out, where=option) from None
         for other_option, other in seen:
-            if _same_file(out, other):
+            if same_file(out, other):
                 raise CurltrackError(f"the same file as {other_option} {other}", path=out,
                                      where=option)
         seen.append((option, out))
 
 
-def _same_file(a: Path, b: Path) -> bool:
+def same_file(a: Path, b: Path) -> bool:
     """Same file: one inode (hard or symbolic links) or the same resolved path."""
     try:
         if os.path.samefile(a, b):
