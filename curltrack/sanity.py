@@ -31,7 +31,8 @@ import numpy as np
 
 from .errors import SeriesError
 
-__all__ = ["check_units", "MAX_DURATION_S", "MAX_T_S", "MAX_SPEED", "MAX_SPIN"]
+__all__ = ["check_units", "bound_rows", "MAX_DURATION_S", "MAX_T_S", "MAX_SPEED",
+           "MAX_SPIN", "DISCOVER_MAX_ROWS"]
 
 #: Longest series taken as one shot (s): a slow draw lasts ~35 s.
 MAX_DURATION_S = 120.0
@@ -44,6 +45,11 @@ MAX_SPEED = 8.0
 MM_SPEED = 40.0
 #: Fastest plausible spin (rad/s): a spinner turns at most ~3 turns/s.
 MAX_SPIN = 25.0
+#: Most measured rows ``discover`` fits at once (all shots together).  Its memory
+#: grows ~0.1 MB per row (2,500 rows: 470 MB peak); beyond this the shots are
+#: thinned evenly (every k-th row), which keeps the noise per point and the shape of
+#: every residual.  With it, discover stays under 1 GB whatever the input.
+DISCOVER_MAX_ROWS = 4000
 #: Time over which speeds and spins are measured (s).
 RATE_WINDOW_S = 0.1
 
@@ -131,3 +137,28 @@ def _rate(t: np.ndarray, v: np.ndarray, lag: int) -> float:
         return 0.0
     step = np.linalg.norm(v[lag:] - v[:-lag], axis=1)[good] / dt[good]
     return float(np.percentile(step, 90))
+
+
+def bound_rows(series_list, max_rows: int = DISCOVER_MAX_ROWS):
+    """Thin a list of series evenly to at most ``max_rows`` measured rows in all.
+
+    Returns
+    -------
+    (list of Series, list of str)
+        The series (the same objects when nothing was thinned; new ones otherwise —
+        inputs are never changed) and a warning saying what was done.
+    """
+    from dataclasses import replace
+
+    n = sum(int((s.data["ok"] == 1).sum()) for s in series_list)
+    if n <= max_rows:
+        return list(series_list), []
+    k = int(np.ceil(n / max_rows))
+
+    def thin(d):  # frame // k: consecutive kept rows stay consecutive (the noise model)
+        return d.iloc[::k].assign(frame=d["frame"].iloc[::k] // k).reset_index(drop=True)
+
+    out = [replace(s, data=thin(s.data)) for s in series_list]
+    return out, [f"{n} measured rows is more than discover fits at once ({max_rows}): "
+                 f"every {k}th row used (the noise per point and the residuals' shape "
+                 "are kept; fewer points make weak effects harder to see)"]

@@ -77,7 +77,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     CurltrackError
         Unreadable or unusable input (one line naming the file and field).
     """
-    from ..sanity import check_units
+    from ..sanity import bound_rows, check_units
     from ..series import Series, read_series
 
     if baseline not in ("paper", "dry"):
@@ -88,6 +88,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
         raise InputError("no shots given")
     sers = [s if isinstance(s, Series) else read_series(Path(s)) for s in items]
     unit_warnings = [w for s in sers for w in check_units(s)]  # raises on a unit mistake
+    sers, thinned = bound_rows(sers)  # bounded memory: at most DISCOVER_MAX_ROWS rows
     shots = [shot_from_series(s) for s in sers]
     names = ", ".join(s.name for s in sers)
     rng = np.random.default_rng(seed)
@@ -135,7 +136,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
 
     report = build_report(shots, base, fit0, before, h0, h0_loso, scores)
     report["not_tested"] = untested(shots, baseline)
-    report["warnings"] = [*unit_warnings, *report.get("warnings", [])]
+    report["warnings"] = [*unit_warnings, *thinned, *report.get("warnings", [])]
     return report
 
 
