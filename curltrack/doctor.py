@@ -130,7 +130,8 @@ def _sample(image, rig, det):
     from .track.parallax import similarity_fit
 
     out = {"markers_found": None, "grid": None, "grid_msg": "", "scale": np.nan,
-           "rock_px": np.nan, "spacing_px": np.nan, "residual_px": np.nan}
+           "outline_scale": np.nan, "rock_px": np.nan, "spacing_px": np.nan,
+           "residual_px": np.nan}
     mf = det.detect(image)
     out["markers_found"] = mf.found.tolist()
     mask = None
@@ -152,7 +153,11 @@ def _sample(image, rig, det):
     if mf.found.all():
         ice = cal.image_to_ice(mf.xy_px)
         if np.isfinite(ice).all():
-            out["scale"] = float(similarity_fit(L, ice)[2])
+            from .track.outline import outline_radius
+
+            c, _, out["scale"], _ = similarity_fit(L, ice)
+            R = rig.rock_diameter_m / 2
+            out["outline_scale"] = outline_radius(image, cal.H, cal.K, cal.dist, c, R)[0] / R
     return out
 
 
@@ -334,10 +339,14 @@ def _geometry_checks(rep, rig, samples):
                                 "grid in the same frame)",
                                 "give [camera].height_m in the rig", {}))
         return
+    from .track.outline import scale_check
     from .track.parallax import ICE_REFRACTIVE_INDEX, layout_scale_mismatch
 
     s = float(np.median(scales))
-    mismatch = layout_scale_mismatch(s, rig)
+    depth = rig.grid_depth_m / ICE_REFRACTIVE_INDEX
+    mismatch = layout_scale_mismatch(s, rig) or scale_check(
+        [x["scale"] for _, x in samples], [x["outline_scale"] for _, x in samples], rig,
+        rig.rock_height_m + depth, depth)
     if mismatch:  # (track stops with this error)
         rep.checks.append(Check("camera_height", "fail", mismatch,
                                 "fix [grid] spacing_x_m/spacing_y_m (and colors) or the "
