@@ -36,6 +36,10 @@ import numpy as np
 from .errors import ParameterError
 
 NOISE_CLASSES = ("white", "ar1", "steps", "heavy")
+#: typical scales (position m, angle rad) of each class: a tracked video's 2 mm / 0.3
+#: degrees; a position instrument's steps of 3-15 cm (an angle instrument's ~3 degrees)
+TYPICAL_SCALE = {"white": (0.002, 0.005), "ar1": (0.002, 0.005), "steps": (0.05, 0.05),
+                 "heavy": (0.002, 0.005)}
 #: steps: how long an error level holds (s) and its size range in units of sigma
 STEP_HOLD_S = (0.5, 3.0)
 STEP_LEVEL = (0.5, 1.5)

@@ -86,13 +86,24 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     if not items:
         raise InputError("no shots given")
     sers = [s if isinstance(s, Series) else read_series(Path(s)) for s in items]
+    if baseline == "dry":
+        for s in sers:
+            if not s.theta_measured:
+                raise InputError("every theta is empty (a position-only series): "
+                                 "--baseline dry fixes the friction laws of translation "
+                                 "and rotation and needs the rotation; use --baseline "
+                                 "paper", path=s.name, where="theta, rows 2-"
+                                 f"{len(s.data) + 1}")
     shots = [shot_from_series(s) for s in sers]
     names = ", ".join(s.name for s in sers)
     rng = np.random.default_rng(seed)
 
     base = JointModel(shots, baseline, rig=rig)
     fit0 = base.fit(max_nfev=80, name=names)
-    seg_slices = [sl for _, _, sl in base.segments]
+    if calibrate_noise(base, fit0):  # the instrument's errors are not all AR(1): reweigh
+        fit0 = base.fit(max_nfev=40, name=names)
+    seg_slices = [(sl, max(scoring.BLOCK_FRAMES, int(np.ceil(3 * base.shots[j].noise[c].tau))))
+                  for j, c, sl in base.segments]
     before = structure_tests(segments_of(base, fit0))
     f_time = folds_time(base)
     f_shot = folds_shot(base) if len(shots) > 1 else None
@@ -134,6 +145,23 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     report = build_report(shots, base, fit0, before, h0, h0_loso, scores)
     report["not_tested"] = untested(shots, baseline)
     return report
+
+
+def calibrate_noise(base, fit0) -> bool:
+    """Set each (shot, coordinate)'s noise inflation and correlation time from the
+    baseline's whitened residuals (:func:`.noise.residual_structure`); True if any
+    changed.  Every later fit (candidates, bootstrap) weighs residuals with them."""
+    from dataclasses import replace
+
+    from .noise import residual_structure
+
+    changed = False
+    for j, c, sl in base.segments:
+        s = base.shots[j]
+        infl, tau = residual_structure(fit0.r[sl], s.t[s.use[c]])
+        s.noise[c] = replace(s.noise[c], inflation=infl, tau=tau)
+        changed |= infl > 1.2  # below that a refit changes nothing that matters
+    return changed
 
 
 def write_report(report: dict, path, plot=None) -> None:

@@ -120,12 +120,16 @@ def untested(shots, baseline: str) -> dict:
     """Effects that cannot be told from the baseline with these shots, and why."""
     out = {}
     translating = [s for s in shots if s.translates]
-    spins = {s.spin for s in translating if s.spins}
+    spins = {s.spin for s in translating if s.spins and s.theta_measured}
     if baseline != "dry":
         out["velocity_dependent_friction"] = ("part of the paper baseline (phi free); "
                                               "tested against --baseline dry")
     if not translating:
         out["ice_slope"] = out["friction_patch"] = out["late_curl"] = "the rock does not slide"
+    elif len(spins) < 2 and not all(s.theta_measured for s in translating):
+        out["ice_slope"] = ("needs shots of both spin directions with the rotation measured "
+                            "(position-only shots: the spin's side is read off the curl, "
+                            "which a lateral slope moves)")
     elif len(spins) < 2:
         out["ice_slope"] = (
             "needs shots of both spin directions in a common frame: with one spin "
@@ -149,7 +153,10 @@ def build_candidates(shots, baseline: str) -> list:
     """
     out = []
     translating = [s for s in shots if s.translates]
-    spins = {s.spin for s in translating if s.spins}
+    # ice_slope needs measured spin directions (a side read off the curl would make the
+    # slope's test circular); late_curl only needs a curl
+    spins = {s.spin for s in translating if s.spins and s.theta_measured}
+    curls = any(s.curls for s in translating)
     if baseline == "dry":
         rel = []
         if translating:
@@ -181,7 +188,7 @@ def build_candidates(shots, baseline: str) -> list:
                           Param("y_end_m", 0.0, -1.0, y_max + 1.0, "m")],
                 grid=grid, note="a stretch of the sheet (along y) where alpha is multiplied "
                                 "by factor; extent scanned on a grid, then refined"))
-        if spins:
+        if curls:
             out.append(Candidate("late_curl", [Param("k", 0.0, -3.0, 3.0)],
                                  note="a_T (v / 1 m/s)^(-k)"))
     grid = []
@@ -194,6 +201,8 @@ def build_candidates(shots, baseline: str) -> list:
             Param("domega_rad_per_s", 0.0, -10.0, 10.0, "rad/s")]
     if not translating:
         size = size[2:]
+    elif not any(s.theta_measured for s in shots):
+        size = size[:2]  # position-only: a spin impulse is never invented
     import itertools
 
     subsets = [c for r in range(1, len(size) + 1)

@@ -64,9 +64,16 @@ class Noise:
     rho: float
     n: int
     sigma_rest: float | None = None
+    #: set from the baseline's residuals (:func:`residual_structure`): the variance of
+    #: the whitened residuals at long scales (1 when the AR(1) model is the whole story)
+    inflation: float = 1.0
+    #: correlation time (samples) of the whitened residuals at scales below
+    #: ``HIGHPASS_S`` (1 when the AR(1) model whitens them)
+    tau: float = 1.0
 
     def as_dict(self) -> dict:
-        return {"sigma": self.sigma, "rho": self.rho, "n": self.n, "sigma_rest": self.sigma_rest}
+        return {"sigma": self.sigma, "rho": self.rho, "n": self.n, "sigma_rest": self.sigma_rest,
+                "inflation": self.inflation, "tau": self.tau}
 
 
 def _robust_scale(v):
@@ -152,3 +159,65 @@ def whiten_matrix_apply(v, rho):
     out[0] = v[0]
     out[1:] = (v[1:] - rho * v[:-1]) / np.sqrt(1.0 - rho * rho)
     return out
+
+
+#: scales (s) below which whitened residuals are taken to be noise: an instrument's
+#: errors that persist for up to ~3 s (LiDAR/radar fixes) are noise, a misfit of the
+#: model is smooth over longer stretches and is removed by this high-pass before the
+#: noise's own structure is measured
+HIGHPASS_S = 6.0
+#: correlation times (samples) above this mean the AR(1) model did not whiten the noise
+CORRELATED_TAU = 1.5
+
+
+def _correlation_time(w, cap):
+    """Integrated autocorrelation time (samples) up to the first insignificant lag."""
+    n = w.size
+    f = np.fft.rfft(w - w.mean(), 2 * n)
+    acf = np.fft.irfft(f * np.conj(f))[:max(2, min(n // 4, int(cap)))]
+    if acf[0] <= 0:
+        return 1.0
+    acf = acf / acf[0]
+    below = np.flatnonzero(acf[1:] < max(0.05, 2.0 / np.sqrt(n)))
+    m = int(below[0]) if below.size else acf.size - 1
+    return float(max(1.0, 1.0 + 2.0 * acf[1:m + 1].sum()))
+
+
+def residual_structure(w, t) -> tuple[float, float]:
+    """The noise that the AR(1) model left in whitened residuals: (inflation, tau).
+
+    Real instruments err in ways the AR(1) model of second differences does not see:
+    step-like errors that hold for seconds, heavy tails and outliers (a robust scale
+    ignores them).  Their trace is in the baseline's whitened residuals ``w`` at short
+    scales.  ``w`` is high-passed (running mean over ``HIGHPASS_S`` removed, so a smooth
+    misfit is not taken for noise); ``tau`` is its integrated correlation time and
+    ``inflation = var * tau`` the variance of ``w`` at long scales (the spectral density
+    at low frequency that a smooth effect's chi-square gain is measured against).  For
+    white or AR(1) noise both are ~1.
+
+    Parameters
+    ----------
+    w : array
+        Whitened residuals of one (shot, coordinate), in time order.
+    t : array
+        Their times (s).
+
+    Returns
+    -------
+    (float, float)
+        ``inflation`` (>= 1) and ``tau`` (samples, >= 1).
+    """
+    w = np.asarray(w, dtype=float)
+    t = np.asarray(t, dtype=float)
+    if w.size < 20:
+        return 1.0, 1.0
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    win = int(np.clip(round(HIGHPASS_S / max(dt, 1e-6)), 5, w.size))
+    kern = np.ones(win) / win
+    trend = np.convolve(np.pad(w, (win // 2, win - 1 - win // 2), mode="reflect"), kern,
+                        "valid")
+    hp = w - trend
+    tau = min(_correlation_time(hp, win), win / 2.0)
+    # the running mean removed ~tau/win of the noise's variance with it
+    var = float(np.mean(hp * hp)) / max(1.0 - tau / win, 0.5)
+    return float(max(1.0, var * tau)), float(tau)

@@ -357,5 +357,6 @@ def segments_of(model: JointModel, fit: FitOut):
         vx = np.gradient(pred["x"], t) if t.size > 1 else np.zeros_like(t)
         vy = np.gradient(pred["y"], t) if t.size > 1 else np.zeros_like(t)
         speed = np.hypot(vx, vy)
-        out.append(Segment(j, c, fit.r[sl], t[use], pred["y"][use], speed[use], s.spin))
+        out.append(Segment(j, c, fit.r[sl], t[use], pred["y"][use], speed[use], s.spin,
+                           tau=s.noise[c].tau))
     return out
