@@ -395,7 +395,7 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
     d = d[d["t"] >= 0]
     if len(d) < MIN_POINTS:
         raise FitError(f"too few measured points ({len(d)}; need at least {MIN_POINTS})",
-                       path=path)
+                       path=path, where=f"rows 2-{len(series.data) + 1}")
     t = d["t"].to_numpy(float)
     x, y, th = (d[c].to_numpy(float) for c in ("x", "y", "theta"))
     has_theta = np.isfinite(th)

@@ -142,7 +142,16 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
 
     from .report import build_report
 
-    report = build_report(shots, base, fit0, before, h0, h0_loso, scores)
+    from .report import at_bound
+
+    # a candidate's own parameters at a bound (a spin impulse at its -10 rad/s limit)
+    cand_bounds = {}
+    for sc in scores:
+        if sc.fit is not None:
+            m = JointModel(shots, baseline, by_name[sc.name], rig=rig)
+            cand_bounds[sc.name] = at_bound(sc.fit, m.bounds,
+                                            [p.name for p in by_name[sc.name].params])
+    report = build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds)
     report["not_tested"] = untested(shots, baseline)
     return report
 

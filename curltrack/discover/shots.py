@@ -105,7 +105,7 @@ def shot_from_series(series: Series) -> ShotData:
     name = series.name
     if len(d) < MIN_ROWS:
         raise SeriesError(f"too few measured rows with t >= 0 ({len(d)}; need {MIN_ROWS})",
-                          path=name, where="ok")
+                          path=name, where=f"rows 2-{len(series.data) + 1}")
     warnings: list = []
     t = d["t"].to_numpy(float)
     frame = d["frame"].to_numpy(int)
