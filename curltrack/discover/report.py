@@ -256,13 +256,15 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
 
 
 def _mark_effect(top, bot, ext, params, shot, pred, j):
-    """Shade where the named effect acts: a patch's stretch (in time), a pick's instant."""
-    if ext == "friction_patch":
-        inside = (pred["y"] >= params["y_start_m"]) & (pred["y"] < params["y_end_m"])
-        if inside.any():
-            t_in = shot.t[inside]
-            for ax in (top, bot):
-                ax.axvspan(t_in.min(), t_in.max(), color="C2", alpha=0.12, lw=0)
-    elif ext == "pick" and int(params.get("shot", 0)) == j:
+    """Shade where the named effect acts (its definition's marks: a patch's stretch in
+    time, a pick's instant)."""
+    from ..physics.effects import EFFECTS
+
+    if ext not in EFFECTS:
+        return
+    for mark in EFFECTS[ext].marks(params, j, shot.t, pred):
         for ax in (top, bot):
-            ax.axvline(params["t_s"], color="C2", lw=1, ls=":")
+            if mark[0] == "span":
+                ax.axvspan(mark[1], mark[2], color="C2", alpha=0.12, lw=0)
+            else:
+                ax.axvline(mark[1], color="C2", lw=1, ls=":")
