@@ -7,9 +7,10 @@ from typing import List, Optional
 
 import typer
 
+from ..physics.effects import EFFECTS
 from ._app import app, check_outputs, fail, guarded
 
-_HELP = """Simulate a shot and write it as a SHOT.csv-format series (and sidecar SIM.json).
+_HELP = f"""Simulate a shot and write it as a SHOT.csv-format series (and sidecar SIM.json).
 
 Frame: origin at the start, +y along the initial velocity, theta counter-clockwise seen
 from above.  omega0 > 0 is a counter-clockwise spin, which curls to -x.
@@ -20,8 +21,8 @@ tied so that rotation stops when translation does, a_T = 5e-3 m/s^2, R = 0.14 m,
 r = 0.0625 m (or the rig's).  `--v0 2.0 --omega0 1.5` gives a ~26 s draw with ~0.9 m
 of curl.  --phi/--alpha set both channels; --phi-y ... override per channel.
 
-Effects: --effect NAME followed by its --param KEY=VALUE (names: ice_slope,
-friction_patch, late_curl, pick, velocity_dependent_friction).  Example:
+Effects: --effect NAME followed by its --param KEY=VALUE (names: {', '.join(EFFECTS)}).
+Example:
 --effect ice_slope --param slope_x_mm_per_m=1.5 --effect pick --param t_s=8
 --param domega_rad_per_s=-0.5
 
@@ -47,12 +48,12 @@ def _parse_effects(names: List[str], params: List[str]):
     occurrence that already has parameters and lacks this one, else to the first that
     lacks it — right whenever each effect's --param's follow it.
     """
-    from ..physics.effects import EFFECTS, Effect
+    from ..physics.effects import Effect
 
     for name in names:
         if name not in EFFECTS:
-            _usage(f"unknown effect {name!r}; expected one of "
-                                     f"{', '.join(sorted(EFFECTS))}", param_hint="--effect")
+            _usage(f"unknown effect {name!r}; expected one of {', '.join(sorted(EFFECTS))}",
+                   param_hint="--effect")
     chosen = [(name, {}) for name in names]
     for item in params:
         key, sep, text = item.partition("=")
@@ -63,11 +64,11 @@ def _parse_effects(names: List[str], params: List[str]):
             value = float(text)
         except ValueError:
             _usage(f"{key}: expected a number, got {text!r}", param_hint="--param")
-        lacking = [p for n, p in chosen if key in EFFECTS[n] and key not in p]
+        lacking = [p for n, p in chosen if key in EFFECTS[n].param_names and key not in p]
         started = [p for p in lacking if p]
         owner = started[-1] if started else (lacking[0] if lacking else None)
         if owner is None:
-            valid = sorted({k for n in names for k in EFFECTS[n]})
+            valid = sorted({k for n in names for k in EFFECTS[n].param_names})
             _usage(
                 f"{key!r} is not a parameter of the given effect(s) {names or '(none)'} "
                 f"(or is given twice); expected some of {valid}", param_hint="--param")

@@ -27,6 +27,7 @@ no supported candidate: ``unexplained`` if the baseline residuals are structured
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -36,8 +37,8 @@ from . import scoring
 from .candidates import build_candidates, untested
 from .model import JointModel
 from .residuals import structure_tests
-from .search import (NONLINEAR_MARGIN, folds_shot, folds_time, heldout, refine_candidate,
-                     score_candidate, segments_of)
+from .search import (NONLINEAR_MARGIN, block_lengths, folds_shot, folds_time, heldout,
+                     refine_candidate, rescore, residual_noise, score_candidate, segments_of)
 from .shots import shot_from_series
 
 __all__ = ["discover", "write_report"]
@@ -100,11 +101,14 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
 
     base = JointModel(shots, baseline, rig=rig)
     fit0 = base.fit(max_nfev=80, name=names)
-    if calibrate_noise(base, fit0):  # the instrument's errors are not all AR(1): reweigh
-        fit0 = base.fit(max_nfev=40, name=names)
-    seg_slices = [(sl, max(scoring.BLOCK_FRAMES, int(np.ceil(3 * base.shots[j].noise[c].tau))))
-                  for j, c, sl in base.segments]
-    before = structure_tests(segments_of(base, fit0))
+    # what the AR(1) noise model leaves in the baseline's residuals (an instrument's
+    # persisting errors, heavy tails -- or a misfit); candidates are judged under the
+    # noise their own residuals show (search.rescore)
+    noise0 = residual_noise(base, fit0.r)
+    for (j, c, _), (infl, tau) in zip(base.segments, noise0):
+        shots[j].noise[c] = replace(shots[j].noise[c], inflation=infl, tau=tau)
+    seg_slices = block_lengths(base, noise0)
+    before = structure_tests(segments_of(base, fit0, noise0))
     f_time = folds_time(base)
     f_shot = folds_shot(base) if len(shots) > 1 else None
     h0 = heldout(fit0, f_time, base)
@@ -140,6 +144,9 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
             if sc._refine is not None and sc.fit is None:
                 refine(sc)
 
+    for sc in scores:
+        rescore(sc, base, fit0, rng, n_boot=n_boot)
+
     from .report import build_report
 
     from .report import at_bound
@@ -148,29 +155,11 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     cand_bounds = {}
     for sc in scores:
         if sc.fit is not None:
-            m = JointModel(shots, baseline, by_name[sc.name], rig=rig)
-            cand_bounds[sc.name] = at_bound(sc.fit, m.bounds,
+            cand_bounds[sc.name] = at_bound(sc.fit, sc._model.bounds,
                                             [p.name for p in by_name[sc.name].params])
     report = build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds)
     report["not_tested"] = untested(shots, baseline)
     return report
-
-
-def calibrate_noise(base, fit0) -> bool:
-    """Set each (shot, coordinate)'s noise inflation and correlation time from the
-    baseline's whitened residuals (:func:`.noise.residual_structure`); True if any
-    changed.  Every later fit (candidates, bootstrap) weighs residuals with them."""
-    from dataclasses import replace
-
-    from .noise import residual_structure
-
-    changed = False
-    for j, c, sl in base.segments:
-        s = base.shots[j]
-        infl, tau = residual_structure(fit0.r[sl], s.t[s.use[c]])
-        s.noise[c] = replace(s.noise[c], inflation=infl, tau=tau)
-        changed |= infl > 1.2  # below that a refit changes nothing that matters
-    return changed
 
 
 def write_report(report: dict, path, plot=None) -> None:

@@ -35,7 +35,8 @@ from .shots import COORDS
 SHARED = ("phi_y", "alpha_y", "phi_theta", "alpha_theta", "a_T")
 PER_SHOT = ("v0", "omega0", "x0", "y0", "theta0", "skew")
 
-#: (lower, upper, finite-difference step) of every model parameter
+#: (lower, upper, finite-difference step) of every baseline parameter (an effect's come
+#: from its definition in the registry, :mod:`curltrack.physics.effects`)
 _BOUNDS = {
     "phi_y": (-3.0, 0.9, 1e-4), "phi_theta": (-3.0, 0.9, 1e-4),
     "alpha_y": (1e-6, 5.0, None), "alpha_theta": (1e-6, 5.0, None),
@@ -43,11 +44,6 @@ _BOUNDS = {
     "v0": (0.0, 20.0, 1e-5), "omega0": (-60.0, 60.0, 1e-5),
     "x0": (-1.0, 1.0, 1e-5), "y0": (-1.0, 1.0, 1e-5), "theta0": (-1.0, 1.0, 1e-5),
     "skew": (-0.5, 0.5, 1e-5),
-    "slope_x_mm_per_m": (None, None, 1e-3), "slope_y_mm_per_m": (None, None, 1e-3),
-    "factor": (None, None, 1e-4), "y_start_m": (None, None, 1e-3), "y_end_m": (None, None, 1e-3),
-    "k": (None, None, 1e-4), "t_s": (None, None, 1e-3),
-    "dvx_m_per_s": (None, None, 1e-5), "dvy_m_per_s": (None, None, 1e-5),
-    "domega_rad_per_s": (None, None, 1e-4),
 }
 
 
@@ -190,6 +186,8 @@ class JointModel:
         for name in self.free + list(self.values):
             lo, hi, _ = _BOUNDS[_base(name)]
             self.bounds[name] = (lo, hi)
+        self._cand_steps = {p.name: p.step for p in cand.params if p.step is not None} \
+            if cand is not None else {}
         if cand is not None:
             for p in cand.params:
                 if p.name not in cand.releases:  # released baseline params keep values
@@ -270,8 +268,7 @@ class JointModel:
         sig = self.sigma_vector()
         out = v / (sig if v.ndim == 1 else sig[:, None])
         for j, c, sl in self._segments:
-            nz = self.shots[j].noise[c]
-            out[sl] = whiten_matrix_apply(out[sl], nz.rho) / np.sqrt(nz.inflation)
+            out[sl] = whiten_matrix_apply(out[sl], self.shots[j].noise[c].rho)
         return out
 
     # --- parameters -----------------------------------------------------------------
@@ -287,13 +284,13 @@ class JointModel:
         i = _shot_of(name)
         if i is not None:
             return {i}
-        if self.cand is not None and self.cand.name == "pick" and name in \
+        if self.cand is not None and self.cand.per_shot and name in \
                 {p.name for p in self.cand.params}:
             return {int((self.cand_fixed or {}).get("shot", 0))}
         return None  # all shots
 
     def _step(self, name, value):
-        st = _BOUNDS[_base(name)][2]
+        st = self._cand_steps[name] if name in self._cand_steps else _BOUNDS[_base(name)][2]
         return st if st is not None else max(1e-4 * abs(value), 1e-9)
 
     def jacobian_raw(self, values, base_vec=None, base_preds=None):

@@ -161,26 +161,15 @@ def whiten_matrix_apply(v, rho):
     return out
 
 
-#: scales (s) below which whitened residuals are taken to be noise: an instrument's
-#: errors that persist for up to ~3 s (LiDAR/radar fixes) are noise, a misfit of the
-#: model is smooth over longer stretches and is removed by this high-pass before the
-#: noise's own structure is measured
+#: whitened residuals are high-passed at this scale (s) before their noise is measured:
+#: a misfit of the model is mostly smooth over longer stretches
 HIGHPASS_S = 6.0
+#: windows (s) over which the residuals' sums measure the noise's long-scale variance:
+#: they span an instrument's errors that persist for up to ~3 s (LiDAR/radar fixes)
+WINDOW_S = 3.0
 #: correlation times (samples) above this mean the AR(1) model did not whiten the noise
 CORRELATED_TAU = 1.5
-
-
-def _correlation_time(w, cap):
-    """Integrated autocorrelation time (samples) up to the first insignificant lag."""
-    n = w.size
-    f = np.fft.rfft(w - w.mean(), 2 * n)
-    acf = np.fft.irfft(f * np.conj(f))[:max(2, min(n // 4, int(cap)))]
-    if acf[0] <= 0:
-        return 1.0
-    acf = acf / acf[0]
-    below = np.flatnonzero(acf[1:] < max(0.05, 2.0 / np.sqrt(n)))
-    m = int(below[0]) if below.size else acf.size - 1
-    return float(max(1.0, 1.0 + 2.0 * acf[1:m + 1].sum()))
+_MEDIAN_CHI2_1 = 0.454936423119572
 
 
 def residual_structure(w, t) -> tuple[float, float]:
@@ -188,12 +177,14 @@ def residual_structure(w, t) -> tuple[float, float]:
 
     Real instruments err in ways the AR(1) model of second differences does not see:
     step-like errors that hold for seconds, heavy tails and outliers (a robust scale
-    ignores them).  Their trace is in the baseline's whitened residuals ``w`` at short
-    scales.  ``w`` is high-passed (running mean over ``HIGHPASS_S`` removed, so a smooth
-    misfit is not taken for noise); ``tau`` is its integrated correlation time and
-    ``inflation = var * tau`` the variance of ``w`` at long scales (the spectral density
-    at low frequency that a smooth effect's chi-square gain is measured against).  For
-    white or AR(1) noise both are ~1.
+    ignores them).  Their trace is in the baseline's whitened residuals ``w``: with ``w``
+    high-passed (running mean over ``HIGHPASS_S`` removed, so that a smooth misfit is
+    not taken for noise), ``inflation`` is the variance of its sums over ``WINDOW_S``
+    windows per sample -- the spectral density at low frequency that a smooth effect's
+    chi-square gain is measured against -- taken as the *median* over overlapping
+    windows, so that a localized misfit (a pick's kink, a patch) is not taken for noise
+    either, since noise is everywhere.  ``tau`` = inflation / variance is the correlation
+    time in samples.  For white or AR(1) noise both are ~1.
 
     Parameters
     ----------
@@ -209,15 +200,20 @@ def residual_structure(w, t) -> tuple[float, float]:
     """
     w = np.asarray(w, dtype=float)
     t = np.asarray(t, dtype=float)
-    if w.size < 20:
+    if w.size < 40:
         return 1.0, 1.0
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-    win = int(np.clip(round(HIGHPASS_S / max(dt, 1e-6)), 5, w.size))
-    kern = np.ones(win) / win
-    trend = np.convolve(np.pad(w, (win // 2, win - 1 - win // 2), mode="reflect"), kern,
-                        "valid")
+    dt = float(np.median(np.diff(t)))
+    win = int(np.clip(round(HIGHPASS_S / max(dt, 1e-6)), 10, w.size))
+    trend = np.convolve(np.pad(w, (win // 2, win - 1 - win // 2), mode="reflect"),
+                        np.ones(win) / win, "valid")
     hp = w - trend
-    tau = min(_correlation_time(hp, win), win / 2.0)
-    # the running mean removed ~tau/win of the noise's variance with it
-    var = float(np.mean(hp * hp)) / max(1.0 - tau / win, 0.5)
-    return float(max(1.0, var * tau)), float(tau)
+    L = int(np.clip(round(WINDOW_S / max(dt, 1e-6)), 3, win // 2))
+    c = np.concatenate([[0.0], np.cumsum(hp)])
+    sums = (c[L:] - c[:-L])[:: max(1, L // 3)]
+    if sums.size < 3:
+        return 1.0, 1.0
+    # the running mean took (L / win) of a window sum's variance with it (white noise)
+    infl = float(np.median(sums ** 2)) / L / _MEDIAN_CHI2_1 / (1.0 - L / win)
+    var = float(np.mean(hp * hp)) / (1.0 - 1.0 / win)
+    tau = infl / var if var > 0 else 1.0
+    return float(max(1.0, infl)), float(np.clip(tau, 1.0, L))

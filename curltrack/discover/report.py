@@ -30,7 +30,7 @@ def at_bound(fit, bounds: dict, names=None) -> list:
         lo, hi = bounds.get(k, (None, None))
         v = fit.values[k]
         span = (hi - lo) if lo is not None and hi is not None else abs(v) + 1.0
-        tol = max(1e-6 * span, 1e-9)
+        tol = max(1e-6 * min(span, abs(v) + 1.0), 1e-9)
         for b in (lo, hi):
             if b is not None and abs(v - b) <= tol:
                 out.append(f"{k} = {v:.4g} at its bound {b:.4g}")
@@ -307,13 +307,15 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
 
 
 def _mark_effect(top, bot, ext, params, shot, pred, j):
-    """Shade where the named effect acts: a patch's stretch (in time), a pick's instant."""
-    if ext == "friction_patch":
-        inside = (pred["y"] >= params["y_start_m"]) & (pred["y"] < params["y_end_m"])
-        if inside.any():
-            t_in = shot.t[inside]
-            for ax in (top, bot):
-                ax.axvspan(t_in.min(), t_in.max(), color="C2", alpha=0.12, lw=0)
-    elif ext == "pick" and int(params.get("shot", 0)) == j:
+    """Shade where the named effect acts (its definition's marks: a patch's stretch in
+    time, a pick's instant)."""
+    from ..physics.effects import EFFECTS
+
+    if ext not in EFFECTS:
+        return
+    for mark in EFFECTS[ext].marks(params, j, shot.t, pred):
         for ax in (top, bot):
-            ax.axvline(params["t_s"], color="C2", lw=1, ls=":")
+            if mark[0] == "span":
+                ax.axvspan(mark[1], mark[2], color="C2", alpha=0.12, lw=0)
+            else:
+                ax.axvline(mark[1], color="C2", lw=1, ls=":")

@@ -77,6 +77,17 @@ class ShotData:
         """Coordinates that enter the fits."""
         return [c for c in COORDS if self.use[c].any()]
 
+    @property
+    def y_max_m(self) -> float:
+        """Largest measured y (m) among the rows that enter the fits."""
+        return float(np.nanmax(self.obs["y"][self.use["y"]]))
+
+    @property
+    def t_end_s(self) -> float:
+        """End of the time an effect can act in (s): the first stop, or the last row."""
+        return min(v for v in (self.t_stop_translation, self.t_stop_rotation, self.t[-1])
+                   if v)
+
 
 def _stop(series: Series, key: str, detected, warnings: list):
     v = series.meta.get(key)
