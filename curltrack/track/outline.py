@@ -72,9 +72,10 @@ def _edges(r, prof):
     k = np.clip(np.argmax(g, axis=1), 1, r.size - 2)
     rows = np.arange(prof.shape[0])
     a, b, c = g[rows, k - 1], g[rows, k], g[rows, k + 1]
-    den = a - 2 * b + c
-    off = np.where(np.isfinite(den) & (den < 0), 0.5 * (a - c) / np.where(den < 0, den, -1),
-                   0.0)
+    with np.errstate(invalid="ignore"):  # profiles off the frame: -inf - -inf, dropped below
+        den = a - 2 * b + c
+        off = np.where(np.isfinite(den) & (den < 0),
+                       0.5 * (a - c) / np.where(den < 0, den, -1), 0.0)
     edge = r[k] + np.clip(off, -1, 1) * (r[1] - r[0])
     return edge, b
 
@@ -102,8 +103,10 @@ def outline_radius(image, H, K, dist, centre, radius_m: float) -> tuple[float, n
     for it in range(2):  # a circle fit, then profiles again from its centre
         ang, r, prof = _profiles(grey, H_inv, K, dist, c, radius_m, N_DIRECTIONS)
         edge, strength = _edges(r, prof)
-        sharp = np.isfinite(strength) & (strength > 0.5 * np.nanmax(
-            np.where(np.isfinite(strength), strength, np.nan)))
+        finite = np.isfinite(strength)
+        if not finite.any():  # the rock's surroundings are all off the frame
+            return np.nan, c
+        sharp = finite & (strength > 0.5 * strength[finite].max())
         if sharp.sum() < N_DIRECTIONS // 4:
             return np.nan, c
         p = c + edge[:, None] * np.column_stack([np.cos(ang), np.sin(ang)])
