@@ -35,6 +35,10 @@ GIVE_UP_FRAMES = 90
 ANCHOR_MAX_GAP = 12
 
 
+#: A frame whose grey levels vary less than this (std, 0-255) shows nothing: black,
+#: or a flat fade-in.  Leading blank frames are skipped (t = 0 at the first real one).
+BLANK_STD = 3.0
+BLANK = "blank frame (no image content)"
 #: The rock's outline is measured on every OUTLINE_EVERY-th frame (~0.3 ms each).
 OUTLINE_EVERY = 3
 
@@ -204,6 +208,9 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
         if progress is not None:
             progress(1)
         img = fr.image
+        if not seen_markers and float(img[::8, ::8].std()) < BLANK_STD:  # black lead-in
+            rec.status = BLANK  # (before the detector sees it: it adapts to what it sees)
+            continue
         mf = fol.detect(img, fr.index)
         found = mf is not None and bool(mf.found.all())
         if not found:
@@ -360,6 +367,13 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         cv2.setNumThreads(threads_before)
         if bar:
             bar[0].stop()
+    blank = _blank_lead(records) if start_frame is None else 0
+    if blank:  # black / empty frames before the scene: t = 0 at the first real frame
+        records, start = records[blank:], records[blank].frame
+        t0 = records[0].t
+        for r in records:
+            r.t -= t0
+        exclude = [i for i in exclude if i >= start]
     # Excluded frames are rows too (ok = 0), at their nominal time.
     dt = 1.0 / info.fps
     by_frame = {r.frame: r for r in records}
@@ -368,12 +382,24 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         by_frame[i] = FrameRecord(i, t_of(i), status="excluded by the user")
     records = [by_frame[i] for i in sorted(by_frame)]
     series = build_series(records, rig, info, start, loop_info, path=video_path)
+    if blank:
+        series.meta["warnings"].insert(0, f"frames {start - blank}-{start - 1} show neither "
+                                       f"rock nor grid (black or empty): skipped; t = 0 at "
+                                       f"frame {start} (give --start-frame to choose)")
     if overlay_path is not None:
         from .overlay import write_overlay
 
         write_overlay(video_path, overlay_path, records, series, loop_info, rig,
                       start=start, end=end, exclude=exclude)
     return series
+
+
+def _blank_lead(records) -> int:
+    """How many records at the start are blank frames (a black lead-in)."""
+    for k, r in enumerate(records):
+        if r.status != BLANK:
+            return k
+    return 0
 
 
 def _time_interpolator(records, start, dt):
