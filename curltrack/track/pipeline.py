@@ -39,8 +39,8 @@ ANCHOR_MAX_GAP = 12
 #: or a flat fade-in.  Leading blank frames are skipped (t = 0 at the first real one).
 BLANK_STD = 3.0
 BLANK = "blank frame (no image content)"
-#: The rock's outline is measured on every OUTLINE_EVERY-th frame (~0.3 ms each).
-OUTLINE_EVERY = 3
+#: The rock's outline (~1 ms a frame) is measured on about this many frames of a shot.
+OUTLINE_FRAMES = 40
 
 
 @dataclass
@@ -181,8 +181,12 @@ def _calibrate(image, rig, mask):
         return None, msg
 
 
-def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[FrameRecord], dict]:
+def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int = 2
+                 ) -> tuple[list[FrameRecord], dict]:
     """Run the per-frame loop over an iterable of :class:`curltrack.video.Frame`.
+
+    The rock's outline (the scale check's second ruler) is measured on every
+    ``outline_every``-th frame.
 
     Returns
     -------
@@ -260,7 +264,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
         c, phi, s, _ = similarity_fit(L, ice)
         mpp = pixel_scale(on_ice[M:])
         rec.centre_app, rec.phi, rec.scale = c, phi, s
-        if len(markers_ice) and fr.index % OUTLINE_EVERY == 0:  # the scale's 2nd ruler
+        if fr.index % outline_every == 0:  # the scale's second ruler
             rec.outline_m = outline_radius(img, pose.H, calib.K, calib.dist, c,
                                            rig.rock_diameter_m / 2)[0]
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
@@ -362,7 +366,8 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     try:
         with threadpool_limits(limits=max(n_threads, 1), user_api="blas"):
             records, loop_info = track_frames(frames, rig, path=video_path,
-                                              progress=bar[1] if bar else None)
+                                              progress=bar[1] if bar else None,
+                                              outline_every=max(2, total // OUTLINE_FRAMES))
     finally:
         cv2.setNumThreads(threads_before)
         if bar:
