@@ -41,6 +41,7 @@ from uncertainties import UFloat
 
 from . import __version__
 from .errors import FitError
+from .sanity import check_units
 from .physics import closed_form as cf
 from .rig import Rig, default_rig
 from .series import Series
@@ -391,6 +392,7 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
     R, r = rig.inertia_radius_m, rig.band_radius_m
     path = series.name
     warnings = list(series.meta.get("warnings", []))
+    warnings += check_units(series)  # units and conventions (raises on a unit mistake)
     d = series.measured
     d = d[d["t"] >= 0]
     if len(d) < MIN_POINTS:

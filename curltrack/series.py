@@ -68,6 +68,17 @@ class Series:
         return str(self.path) if self.path else "<series>"
 
 
+def _is_datetime(value) -> bool:
+    import warnings
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return not pd.isna(pd.to_datetime(str(value)))
+    except (ValueError, TypeError, OverflowError):
+        return False
+
+
 def sidecar_path(path) -> Path:
     """``SHOT.csv`` -> ``SHOT.json``."""
     return Path(path).with_suffix(".json")
@@ -101,6 +112,12 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
     """
     missing = [c for c in COLUMNS if c not in data.columns]
     if missing:
+        sep = next((c for c in ";\t|" if len(data.columns) == 1
+                    and len(str(data.columns[0]).split(c)) >= len(COLUMNS)), None)
+        if sep is not None:  # one column whose name holds all the others
+            raise SeriesError(f"the columns are separated by {sep!r}, not ',' (a CSV from a "
+                              "locale that writes decimal commas?): save it with ','",
+                              path=name)
         raise SeriesError(f"missing column(s) {missing}; expected {list(COLUMNS)}", path=name)
     out = data.copy()
     for col in out.columns:
@@ -109,8 +126,10 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
             bad = num.isna() & out[col].notna() & (out[col].astype(str).str.strip() != "")
             if bad.any():
                 row = int(np.flatnonzero(bad.to_numpy())[0])
+                hint = ("; it looks like a date/time: t is seconds since the release"
+                        if col == "t" and _is_datetime(out[col].iloc[row]) else "")
                 raise SeriesError(f"non-numeric value {out[col].iloc[row]!r} in column "
-                                  f"'{col}'", path=name, where=f"row {row + 2}")
+                                  f"'{col}'{hint}", path=name, where=f"row {row + 2}")
             out[col] = num.astype(float)
     warnings: list[str] = []
     if len(out) == 0:
@@ -131,8 +150,12 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
     if (dt <= 0).any():
         row = int(np.flatnonzero(dt <= 0)[0]) + 1
         kind = "duplicate" if dt[row - 1] == 0 else "decreasing"
-        raise SeriesError(f"{kind} time t={_plain(t[row])} (t must increase)", path=name,
-                          where=f"row {row + 2}")
+        from .sanity import MAX_T_S
+
+        hint = (": t looks like a clock time, not seconds since the release"
+                if abs(t[row]) > MAX_T_S else "")
+        raise SeriesError(f"{kind} time t={_plain(t[row])} in column 't' (t must "
+                          f"increase){hint}", path=name, where=f"row {row + 2}")
     out["frame"] = out["frame"].astype(int)
     out["ok"] = out["ok"].astype(int)
     ok = out["ok"].to_numpy() == 1

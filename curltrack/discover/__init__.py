@@ -78,6 +78,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     CurltrackError
         Unreadable or unusable input (one line naming the file and field).
     """
+    from ..sanity import bound_rows, check_units
     from ..series import Series, read_series
 
     if baseline not in ("paper", "dry"):
@@ -95,6 +96,8 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
                                  "and rotation and needs the rotation; use --baseline "
                                  "paper", path=s.name, where="theta, rows 2-"
                                  f"{len(s.data) + 1}")
+    unit_warnings = [w for s in sers for w in check_units(s)]  # raises on a unit mistake
+    sers, thinned = bound_rows(sers)  # bounded memory: at most DISCOVER_MAX_ROWS rows
     shots = [shot_from_series(s) for s in sers]
     names = ", ".join(s.name for s in sers)
     rng = np.random.default_rng(seed)
@@ -159,6 +162,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
                                             [p.name for p in by_name[sc.name].params])
     report = build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds)
     report["not_tested"] = untested(shots, baseline)
+    report["warnings"] = [*unit_warnings, *thinned, *report.get("warnings", [])]
     return report
 
 
