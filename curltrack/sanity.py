@@ -74,7 +74,9 @@ def check_units(series) -> list[str]:
         theta in degrees or wrapped.
     """
     d = series.measured
-    d = d[np.isfinite(d[["t", "x", "y", "theta"]].to_numpy(float)).all(axis=1)]
+    d = d[np.isfinite(d[["t", "x", "y"]].to_numpy(float)).all(axis=1)]
+    # position-only rows (theta empty) are checked for t, x, y; theta on its own rows
+    dth = d[np.isfinite(d["theta"].to_numpy(float))]
     path = series.name
     warnings: list[str] = []
     t = d["t"].to_numpy(float)
@@ -95,16 +97,17 @@ def check_units(series) -> list[str]:
         fail("t", f"the series spans {span:.5g} s, more than one shot "
                   f"(<= {MAX_DURATION_S:g} s): split the recording into shots")
     lag = _lag(t)
-    th = d["theta"].to_numpy(float)
+    th = dth["theta"].to_numpy(float)
+    t_th = dth["t"].to_numpy(float)
     jumps = np.abs(np.diff(th))
     near_2pi = (jumps > np.pi) & (np.abs(jumps - 2 * np.pi) < 1.0)
     if near_2pi.any() and np.abs(np.diff(np.unwrap(th))).max() < 1.0:
         k = int(np.flatnonzero(near_2pi)[0]) + 1
-        row = int(d.index[k]) + 2  # the file's line number (header is line 1)
+        row = int(dth.index[k]) + 2  # the file's line number (header is line 1)
         fail("theta", f"theta jumps by {th[k] - th[k - 1]:+.3f} rad at row {row}: it looks "
                       "wrapped to one turn; the contract's theta is cumulative (unwrap it, "
                       "e.g. numpy.unwrap)")
-    spin = _rate(t, th[:, None], lag)
+    spin = _rate(t_th, th[:, None], _lag(t_th)) if t_th.size >= 3 else 0.0
     if spin > MAX_SPIN:
         if spin / np.degrees(1.0) <= MAX_SPIN:
             fail("theta", f"the rock would spin at {spin:.3g} rad/s — theta looks like "
