@@ -74,9 +74,9 @@ def run_one(effect: str, strength: float, seed: int, n_shots: int | None = None,
 
 
 def noise_class_table(classes, n_clean: int, trials: int, effects, seed0: int,
-                      log=print) -> dict:
+                      log=print, mults=(1.0, 3.0)) -> dict:
     """Per noise class: false alarms on ``n_clean`` clean shots, and detection of each
-    effect at its 2 mm 90 % strength scaled by the class's noise scale (x1 and x3),
+    effect at its 2 mm 90 % strength scaled by the class's noise scale (x ``mults``),
     ``trials`` cases each; rate (10/30 Hz) and theta (measured or not) drawn per case."""
     from curltrack.instrument import TYPICAL_SCALE
 
@@ -93,7 +93,7 @@ def noise_class_table(classes, n_clean: int, trials: int, effects, seed0: int,
         log(f"{cls}: false alarms {len(bad)}/{n_clean} {row['false_verdicts']} (cpu median "
             f"{row['cpu_clean_median']:.1f} s)", flush=True)
         for eff in effects:
-            for mult in (1.0, 3.0):
+            for mult in mults:
                 st = S90_WHITE[eff] * scale * mult
                 rr = [run_one(eff, st, seed0 + 100 + i, instrument=inst) for i in range(trials)]
                 hits = sum(r["verdict"] == eff for r in rr)
@@ -193,6 +193,8 @@ def main(argv=None):
     ap.add_argument("--noise-classes", default="",
                     help="comma-separated noise classes (white,ar1,steps,heavy): false "
                          "alarms and detection at scaled strengths per class")
+    ap.add_argument("--mults", default="1,3",
+                    help="noise classes: multiples of the scaled 90 %% strength to run")
     ap.add_argument("--session", type=int, default=0,
                     help="time discover on a clean session of this many shots")
     args = ap.parse_args(argv)
@@ -201,7 +203,9 @@ def main(argv=None):
         if args.noise_classes:
             eff = [e for e in args.effects.split(",") if e in S90_WHITE]
             res["noise_classes"] = noise_class_table(args.noise_classes.split(","),
-                                                     args.clean, args.trials, eff, args.seed0)
+                                                     args.clean, args.trials, eff, args.seed0,
+                                                     mults=[float(m) for m in
+                                                            args.mults.split(",")])
         if args.session:
             res["session_cpu_s"] = session_cpu(args.session, args.seed0)
         if args.json:
