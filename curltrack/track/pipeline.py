@@ -48,8 +48,11 @@ class FrameRecord:
     scale: float = np.nan  # apparent layout scale H/(H-h)
     sigma_m: float = np.nan  # 1 sigma of one marker on the ice (m)
     grid_sigma_m: float = np.nan  # 1 sigma of the homography at the image centre (m)
+    grid_residual_m: float = np.nan  # thread points' RMS miss of the fitted lattice (m)
+    m_per_px: float = np.nan  # ice metres per image px at the rock
     spacing_px: float = np.nan
     contrast: float = np.nan
+    segment: int = 0  # the grid's cell-index segment (GridPose.segment)
     notes: list = field(default_factory=list)
 
 
@@ -192,6 +195,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
     L = det.layout_m
     seen_markers = False
     markers_ice: list[tuple[int, np.ndarray]] = []  # last two measured (frame, (M, 2) m)
+    rec_segment = 0  # grid segment of markers_ice
     for fr in frames:
         rec = FrameRecord(fr.index, fr.t)
         records.append(rec)
@@ -243,12 +247,16 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
             continue
         on_ice = apply_h(pose.H, q)
         ice = on_ice[:M]
+        if pose.segment != rec_segment:  # (the last positions are in another cell index)
+            markers_ice, rec_segment = [], pose.segment
+        rec.segment = pose.segment
         markers_ice = (markers_ice + [(fr.index, ice)])[-2:]
         c, phi, s, _ = similarity_fit(L, ice)
         mpp = pixel_scale(on_ice[M:])
         rec.centre_app, rec.phi, rec.scale = c, phi, s
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
         rec.grid_sigma_m = (pose.sigma_px if np.isfinite(pose.sigma_px) else 0.3) * mpp
+        rec.grid_residual_m, rec.m_per_px = pose.residual_px * mpp, mpp
         rec.contrast = float(np.min(mf.contrast))
         if pose.message:
             rec.notes.append(pose.message)

@@ -99,6 +99,32 @@ def _height(records, ok, rig: Rig, depth_eff: float, warnings: list) -> HeightEs
     return est
 
 
+def _resolve_cells(records, t, centre, ok, calib, warnings, path):
+    """Put every grid segment in one cell index (:mod:`.segments`), in place.
+
+    ``centre`` and the records' homographies of re-anchored segments are moved by whole
+    cells; frames of segments the rock's path cannot place become ``ok`` = 0 (``ok``
+    and ``centre`` updated).  Returns the measured frames' indices.
+    """
+    from .segments import resolve_segments
+
+    seg = np.array([r.segment for r in records])
+    shift, unresolved, notes = resolve_segments(
+        t, centre, seg, ok, (calib.spacing_x_m, calib.spacing_y_m))
+    for i in np.flatnonzero(np.any(shift != 0, axis=1)):
+        centre[i] += shift[i]
+        records[i].H = np.array([[1.0, 0, shift[i, 0]], [0, 1.0, shift[i, 1]],
+                                 [0, 0, 1]]) @ records[i].H
+        records[i].centre_app = records[i].centre_app + shift[i]
+    for i in np.flatnonzero(unresolved):
+        records[i].status = ("grid: cell index not certain (the grid was lost and the "
+                             "rock's path across the gap does not fix it)")
+    ok &= ~unresolved
+    centre[unresolved] = np.nan
+    warnings.extend(f"{path}: {n}" for n in notes)
+    return np.flatnonzero(ok)
+
+
 def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None) -> Series:
     """Assemble the Series (see :func:`curltrack.track.track_video` for the columns)."""
     n = len(records)
@@ -149,6 +175,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     app = np.array([records[i].centre_app for i in idx]).reshape(-1, 2)
     nd = np.where(np.isfinite(nadir[idx]).all(axis=1, keepdims=True), nadir[idx], app)
     centre[idx] = correct_parallax(app, nd, est.k)
+    idx = _resolve_cells(records, t, centre, ok, calib, warnings, path)
     phi[idx] = [records[i].phi for i in idx]
     # image up direction in the lattice frame (first measured frame), for a still rock
     r0 = records[idx[0]]
