@@ -1,6 +1,7 @@
-"""Pictures for docs/: a frame of the documented example rig and what `calibrate` finds.
+"""Pictures for docs/: a frame of the documented example rig, what `calibrate` finds,
+and the review page of that shot (screenshot by Debian's chromium through Playwright).
 
-Usage: python scripts/make_docs_images.py   (writes docs/images/*.png; seeded, ~20 s)
+Usage: python scripts/make_docs_images.py   (writes docs/images/*.png; seeded, ~1 min)
 """
 
 from __future__ import annotations
@@ -45,6 +46,30 @@ def main(out=ROOT / "docs" / "images", frame=20):
             rgb = Image.fromarray(cv2.cvtColor(small, cv2.COLOR_BGR2RGB))
             rgb.quantize(colors=128).save(out / f"{name}.png", optimize=True)
             print(f"wrote {out / name}.png")
+        _review_screenshot(tmp, rig, out / "review_page.png")
+
+
+def _review_screenshot(tmp, rig, png):
+    from playwright.sync_api import sync_playwright
+
+    from curltrack.review import write_review
+    from curltrack.series import write_series
+    from curltrack.track import track_video
+
+    series = track_video(tmp / "v.mp4", rig, overlay_path=tmp / "overlay.mp4")
+    write_series(tmp / "shot.csv", series)
+    write_review(tmp / "shot.csv", tmp / "page.html", overlay=tmp / "overlay.mp4")
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=["--no-sandbox"])
+        page = browser.new_page(viewport={"width": 1300, "height": 1150})
+        page.goto((tmp / "page.html").as_uri())
+        page.wait_for_function("window.reviewState && window.reviewState.ready")
+        page.evaluate("document.getElementById('video').currentTime = 60.5 / 30")
+        page.wait_for_function("window.reviewState.currentFrame === 60")
+        page.screenshot(path=str(tmp / "shot.png"))
+        browser.close()
+    Image.open(tmp / "shot.png").convert("RGB").quantize(colors=128).save(png, optimize=True)
+    print(f"wrote {png}")
 
 
 if __name__ == "__main__":

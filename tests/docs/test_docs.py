@@ -153,6 +153,7 @@ def outputs(tmp_path_factory):
         "--param", "dvx_m_per_s=0.02", "--noise-m", "0.002", "--noise-rad", "0.005",
         "--seed", seed, "-o", "sim.csv", cwd=tmp)
     cli("fit", "sim.csv", "-o", "fit.json", cwd=tmp)
+    cli("export", "shot.csv", "--derivatives", "-o", "shot_v.csv", cwd=tmp)
     cli("discover", "sim.csv", "-o", "report.json", cwd=tmp)
     return tmp, seed, (v0, w0)
 
@@ -174,10 +175,17 @@ def test_shot_csv_columns(outputs):
     assert truth_cols == doc
 
 
+def test_export_columns(outputs):
+    tmp, _, _ = outputs
+    added = set(pd.read_csv(tmp / "shot_v.csv").columns) - set(pd.read_csv(tmp / "shot.csv").columns)
+    assert added == documented("review.md", "export")
+
+
 def test_sidecar_keys(outputs):
     tmp, seed, _ = outputs
     written = {"track": set(_json(tmp / "shot.json")), "simulate": set(_json(tmp / "sim.json")),
-               "render": set(_json(tmp / "truth.json"))}
+               "render": set(_json(tmp / "truth.json")),
+               "export": set(_json(tmp / "shot_v.json"))}
     for who, keys in written.items():
         need = documented("files.md", "shot.json", where={"all", who})
         assert need <= keys, f"{who} does not write documented {need - keys}"
