@@ -12,7 +12,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from .._atomic import atomic_path
+from .._atomic import atomic_path, verify_video
 from ..errors import VideoError
 
 __all__ = ["write_overlay", "overlay_frames", "encode_h264", "TRAIL_BGR"]
@@ -176,11 +176,17 @@ def encode_h264(path, frames, fps, size, crf: int = 23, progress=None):
         px; odd sizes are padded by one pixel (yuv420p needs even ones).
     progress : callable, optional
         Called with 1 per frame written.
+
+    Returns
+    -------
+    int
+        Frames written.
     """
     import av
 
     w, h = size
     W, H = w + w % 2, h + h % 2
+    n = 0
     with av.open(str(path), "w", format="mp4", options={"movflags": "+faststart"}) as out:
         stream = out.add_stream("libx264", rate=Fraction(fps).limit_denominator(1001))
         stream.width, stream.height, stream.pix_fmt = W, H, "yuv420p"
@@ -190,10 +196,12 @@ def encode_h264(path, frames, fps, size, crf: int = 23, progress=None):
                 img = np.pad(img, ((0, H - h), (0, W - w), (0, 0)), mode="edge")
             for packet in stream.encode(av.VideoFrame.from_ndarray(img, format="bgr24")):
                 out.mux(packet)
+            n += 1
             if progress is not None:
                 progress(1)
         for packet in stream.encode():
             out.mux(packet)
+    return n
 
 
 def write_overlay(video_path, overlay_path, records, series, loop_info, rig, start=0,
@@ -217,10 +225,11 @@ def write_overlay(video_path, overlay_path, records, series, loop_info, rig, sta
                             start=start, end=end, exclude=exclude)
     with atomic_path(overlay_path, suffix=".mp4") as tmp:
         try:
-            _encode(tmp, frames, info.fps, (info.width, info.height), progress=progress)
+            n = _encode(tmp, frames, info.fps, (info.width, info.height), progress=progress)
         except (ImportError, ValueError) as exc:  # no PyAV / no libx264 in its FFmpeg
             raise VideoError(f"cannot encode the overlay as H.264 ({exc})",
                              path=overlay_path) from None
+        verify_video(tmp, n, overlay_path)
 
 
 _encode = encode_h264
