@@ -22,7 +22,11 @@ family-wise level :data:`residuals.STRUCTURE_LEVEL`) and no other candidate come
 :data:`report.AMBIGUITY_MARGIN` of its delta-BIC; otherwise ``unexplained`` (with the
 rivals under ``unexplained.ambiguous`` when the evidence cannot tell them apart).  With
 no supported candidate: ``unexplained`` if the baseline residuals are structured, else
-``none``.
+``none``.  Delta-BIC, threshold and the structure after are measured under the noise
+the candidate's own residuals show (:func:`.search.rescore`: an instrument's persisting
+errors and heavy tails, which the AR(1) model misses).  A supported candidate with a
+parameter at its bound, or one that makes any coordinate's RMS or held-out RMS worse,
+is not named (``not_named_because``); a baseline parameter at its bound blocks any name.
 """
 
 from __future__ import annotations
@@ -150,9 +154,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     for sc in scores:
         rescore(sc, base, fit0, rng, n_boot=n_boot)
 
-    from .report import build_report
-
-    from .report import at_bound
+    from .report import at_bound, build_report
 
     # a candidate's own parameters at a bound (a spin impulse at its -10 rad/s limit)
     cand_bounds = {}
