@@ -54,6 +54,18 @@ class Candidate:
         Sub-models: which size parameters may be free together (indices into ``size``);
         the scan picks the best by delta-BIC, and the bootstrap calibrates that choice.
         Default: all of them at once.
+    extension : bool
+        A data-driven extension term (:mod:`.extend`), not a named effect.
+    to_effects : callable, optional
+        ``(values, shot_index, shots) -> tuple of Effect`` for terms not listed here.
+    scan : callable, optional
+        ``(base, fit0, cand, locs) -> list of column blocks``: a cheaper way to the
+        linear scan's effect columns than one simulation per location.
+    level : float, optional
+        False-alarm level of the candidate's bootstrap threshold (default
+        :data:`scoring.CANDIDATE_LEVEL`).
+    n_starts : int, optional
+        Nonlinear fits started from this many scan locations (default: the search's).
     """
 
     name: str
@@ -63,6 +75,11 @@ class Candidate:
     releases: list = field(default_factory=list)
     note: str = ""
     subsets: list | None = None
+    extension: bool = False
+    to_effects: object = None
+    scan: object = None
+    level: float | None = None
+    n_starts: int | None = None
 
     @property
     def params(self) -> list:
@@ -98,6 +115,8 @@ def effects_for(cand: Candidate | None, values: dict, shot_index: int, shots) ->
 
     if cand is None or cand.name == "velocity_dependent_friction":
         return ()
+    if cand.to_effects is not None:
+        return cand.to_effects(values, shot_index, shots)
     if cand.name == "ice_slope":
         sx, sy = _slope_frame(values, shots[shot_index].heading_rad, shots[0].heading_rad)
         return (Effect("ice_slope", {"slope_x_mm_per_m": float(sx),

@@ -46,6 +46,10 @@ _BOUNDS = {
     "k": (None, None, 1e-4), "t_s": (None, None, 1e-3),
     "dvx_m_per_s": (None, None, 1e-5), "dvy_m_per_s": (None, None, 1e-5),
     "domega_rad_per_s": (None, None, 1e-4),
+    # extension terms (discover.extend)
+    "amp_cos": (None, None, 1e-4), "amp_sin": (None, None, 1e-4),
+    "wavelength_m": (None, None, 1e-3), "c_s_per_m": (None, None, 1e-4),
+    "c_s_per_rad": (None, None, 1e-4), "p": (None, None, 1e-4),
 }
 
 
@@ -146,6 +150,7 @@ class JointModel:
         rig = rig or default_rig()
         self.R, self.r_band = rig.inertia_radius_m, rig.band_radius_m
         self.shots, self.baseline, self.cand = shots, baseline, cand
+        self._sims: dict = {}
         self.values: dict = {}
         self.bounds: dict = {}
         self.free: list = []
@@ -217,7 +222,16 @@ class JointModel:
                                 phi_theta=v["phi_theta"], alpha_theta=v["alpha_theta"],
                                 a_T=v["a_T"], R=self.R, r=self.r_band)
         eff = effects_for(self.cand, self._effect_values(v), i, self.shots)
-        tr = self._simulate(model, effects=eff, t=t)
+        # the frame offsets and skew (a quarter of a Jacobian's columns) do not change
+        # the simulation: the last few per model are reused
+        key = (i, model, tuple((e.name, tuple(e.params.items())) for e in eff))
+        tr = self._sims.get(key) if t is s.t else None
+        if tr is None:
+            tr = self._simulate(model, effects=eff, t=t)
+            if t is s.t:
+                if len(self._sims) >= 4 * len(self.shots):
+                    self._sims.pop(next(iter(self._sims)))
+                self._sims[key] = tr
         c, sn = np.cos(v[f"skew[{i}]"]), np.sin(v[f"skew[{i}]"])
         x, y = np.asarray(tr.x), np.asarray(tr.y)
         return {"x": v[f"x0[{i}]"] + c * x - sn * y, "y": v[f"y0[{i}]"] + sn * x + c * y,

@@ -6,6 +6,8 @@ import numpy as np
 
 from .._atomic import atomic_path, write_json
 from .residuals import binned_means
+from .extend import choose as choose_extension
+from .extend import extension_object
 from .scoring import bic
 from .shots import COORDS
 
@@ -119,17 +121,27 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
             f["supported"] = bool(sc.delta_bic > max(thr, 0.0) and ok_cv)
         else:
             f["supported"] = False
+        if sc.extension:
+            f["extension"] = True
         f["evidence"] = _evidence(sc, h0)
         findings.append(f)
         if f["supported"]:
             supported.append((sc, f))
-    verdict, unexplained = "none", None
+    verdict, unexplained, extension = "none", None, None
     best_fit, best_model_name, best_params = fit0, None, {}
     ambiguous = []
-    if supported:
-        sc, f = max(supported, key=lambda p: p[0].delta_bic)
+    ext = choose_extension(supported, scores, AMBIGUITY_MARGIN)
+    named = [sc for sc in scores if not sc.extension]
+    supported_named = [(sc, f) for sc, f in supported if not sc.extension]
+    if ext is not None:
+        verdict = "extended"
+        best_fit, best_model_name, best_params = ext.fit, ext.name, ext.params
+        extension = extension_object(ext, next(f for sc, f in supported if sc is ext),
+                                     shots, h0, h0_loso)
+    elif supported_named:
+        sc, f = max(supported_named, key=lambda p: p[0].delta_bic)
         best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
-        ambiguous = rivals(sc, scores)
+        ambiguous = rivals(sc, named)
         if sc.structure_after.structured:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name)
@@ -139,9 +151,12 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
                                ambiguous=[sc.name] + ambiguous)
         else:
             verdict = sc.name
-    elif before.structured:
+    elif supported or before.structured:
         verdict = "unexplained"
         unexplained = dict(before.where or {}, after_model="baseline")
+        alike = [sc.name for sc, _ in supported]
+        if len(alike) > 1:
+            unexplained["ambiguous"] = alike
     if verdict == "unexplained":
         gain, k = _unexplained_gain(base, best_fit)
         w = unexplained
@@ -174,6 +189,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
                      "loso_rmse": h0_loso["scalar"] if h0_loso else None},
         "findings": findings,
         "verdict": verdict,
+        "extension": extension,
         "unexplained": unexplained,
         "structure_before": {"p_min_adjusted": before.p_min_adjusted,
                              "structured": before.structured, "where": before.where,
@@ -186,7 +202,8 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
                    "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
         "warnings": [w for s in shots for w in s.warnings],
         "_plot": {"shots": shots, "model": base, "fit0": fit0, "fit1": best_fit,
-                  "extended": best_model_name, "params": best_params},
+                  "extended": best_model_name, "params": best_params,
+                  "extension": extension},
     }
     return report
 
@@ -217,7 +234,10 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
     p = report["_plot"]
     shots, model, fit0, fit1, ext = p["shots"], p["model"], p["fit0"], p["fit1"], p["extended"]
     ns = min(len(shots), max_shots)
-    fig, axes = plt.subplots(2 * ns, 3, figsize=(13, 4.2 * ns), sharex="col", squeeze=False)
+    ext_obj = report.get("extension")
+    rows = 2 * ns + (1 if ext_obj else 0)
+    fig, axes = plt.subplots(rows, 3, figsize=(13, 4.2 * ns + (3.2 if ext_obj else 0)),
+                             squeeze=False)
     scale = {"x": 1e3, "y": 1e3, "theta": np.degrees(1.0)}
     unit = {"x": "mm", "y": "mm", "theta": "deg"}
     for j in range(ns):
@@ -246,8 +266,15 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
         axes[2 * j, 0].set_title(str(s.name).split("/")[-1], loc="left", fontsize=9)
         axes[2 * j, 0].legend(fontsize=7, loc="best")
         axes[2 * j + 1, 0].legend(fontsize=7, loc="best")
-    for ax in axes[-1]:
+    for ax in axes[2 * ns - 1]:
         ax.set_xlabel("t (s)")
+    if ext_obj:
+        from .extend import plot_function
+
+        gs = axes[-1, 0].get_gridspec()
+        for ax in axes[-1]:
+            ax.remove()
+        plot_function(fig.add_subplot(gs[-1, :]), ext_obj)
     fig.suptitle(f"verdict: {report['verdict']}", fontsize=11)
     fig.tight_layout()
     with atomic_path(path) as tmp:

@@ -65,6 +65,8 @@ class CandidateScore:
     k: int = 0
     nfev: tuple | None = None
     chi2_gain: float | None = None
+    extension: bool = False
+    cand: object = None
     _refine: tuple | None = None
 
 
@@ -151,6 +153,8 @@ def scan_columns(base: JointModel, fit0: FitOut, cand, locs) -> list:
     response to extra friction on [a, b) is that on [a, inf) minus that on [b, inf), so
     N nodes cost N simulations instead of N^2 / 2.
     """
+    if cand.scan is not None:
+        return cand.scan(base, fit0, cand, locs)
     if cand.name != "friction_patch":
         return [effect_columns(base, fit0, cand, loc) for loc in locs]
     far = max(max(loc["y_end_m"] for loc in locs) + 10.0, 100.0)
@@ -180,9 +184,11 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
     k = ks[best]
     lin = float(stats[best])
     thr = scoring.bootstrap_threshold(bases, fit0.r, segments_slices, ks, n, rng,
+                                      level=cand.level or scoring.CANDIDATE_LEVEL,
                                       n_boot=n_boot)
     loc = dict(locs[i_loc])
-    score = CandidateScore(cand.name, lin, lin, thr, None, loc, note=cand.note, k=k)
+    score = CandidateScore(cand.name, lin, lin, thr, None, loc, note=cand.note, k=k,
+                           extension=cand.extension, cand=cand)
     if sum(b.shape[1] for b in bases) == 0:
         score.note += "; not identifiable with these shots (degenerate with the baseline)"
         score.delta_bic = score.delta_bic_linear = -np.inf
@@ -204,9 +210,9 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
 
     for idx in order:
         add(int(idx))
-        if len(starts) >= (N_STARTS if cand.location else 1):
+        if len(starts) >= (cand.n_starts or (N_STARTS if cand.location else 1)):
             break
-    if cand.location:
+    if cand.location and cand.n_starts is None:
         region = _regions(locs, N_REGIONS)
         seen = set()
         for idx in order:
@@ -232,14 +238,15 @@ def _regions(locs, n: int) -> np.ndarray:
 
 
 def _close(a: dict, b: dict, tol: float = 1.0) -> bool:
-    """Two scan locations closer than ``tol`` (s or m): the same start for the fit."""
+    """Two scan locations closer than ``tol`` (s or m): the same start for the fit
+    (other locations, e.g. a wavelength: within 10 %)."""
     if a.get("shot") != b.get("shot"):
         return False
     if "t_s" in a:
         return abs(a["t_s"] - b["t_s"]) < tol
     if "y_start_m" in a:
         return abs(a["y_start_m"] - b["y_start_m"]) < tol and abs(a["y_end_m"] - b["y_end_m"]) < tol
-    return True
+    return all(abs(a[k] - b[k]) <= 0.1 * max(abs(a[k]), abs(b[k])) for k in a if k != "shot")
 
 
 def _close_tol(locs) -> float:
@@ -248,6 +255,8 @@ def _close_tol(locs) -> float:
         return 1.0
     if "t_s" in locs[0]:
         span = max(loc["t_s"] for loc in locs) - min(loc["t_s"] for loc in locs)
+    elif "y_start_m" not in locs[0]:
+        return 1.0   # unused: _close compares other locations relatively
     else:
         span = max(loc["y_end_m"] for loc in locs) - min(loc["y_start_m"] for loc in locs)
     return float(min(1.0, 0.1 * span)) if span > 0 else 1.0
@@ -264,6 +273,16 @@ def _start_model(base, fit0, cand, E, loc, sub) -> JointModel:
     for j, c in zip(sub, coef[fit0.J.shape[1]:]):
         p = cand.size[j]
         m.values[p.name] = float(np.clip(p.null + c, p.lower + 1e-6, p.upper - 1e-6))
+    if cand.extension:
+        # the whole Gauss-Newton step, the baseline's part too: an extension term is
+        # correlated with the friction laws (a spin coupling with phi_theta), and from
+        # the baseline's values the fit crawls along that valley and stops early
+        for name, c in zip(fit0.free, coef[:fit0.J.shape[1]]):
+            lo, hi = m.bounds[name]
+            lo = -np.inf if lo is None else lo
+            hi = np.inf if hi is None else hi
+            m.values[name] = float(np.clip(fit0.values[name] + c, lo + 1e-9 * (abs(lo) + 1),
+                                           hi - 1e-9 * (abs(hi) + 1)))
     # size parameters outside the chosen sub-model stay at their null values
     dropped = [p.name for j, p in enumerate(cand.size) if j not in sub]
     m.free = [f for f in m.free if f not in dropped]

@@ -23,6 +23,10 @@ direction of travel, SI units).
 ``pick`` (``t_s``, ``dvx_m_per_s`` = 0, ``dvy_m_per_s`` = 0, ``domega_rad_per_s`` = 0)
     An impulsive change of velocity and spin at time t_s (debris under the running band).
     It is applied whatever the state (a pick after the stop sets a resting rock moving).
+
+The data-driven extension terms (``friction_field``, ``spin_coupling``,
+``translation_coupling``, ``curl_spin_dependence``) are registered here too; their
+equations are in :mod:`curltrack.physics.terms`.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..rig import G
+from .terms import TERMS, check_term, gather_terms
 
 _REQUIRED = object()
 
@@ -47,6 +52,8 @@ EFFECTS: dict[str, dict[str, object]] = {
     "late_curl": {"k": _REQUIRED, "v_ref_m_per_s": 1.0, "v_min_m_per_s": 0.05},
     "pick": {"t_s": _REQUIRED, "dvx_m_per_s": 0.0, "dvy_m_per_s": 0.0,
              "domega_rad_per_s": 0.0},
+    **{name: {k: (_REQUIRED if v is None else v) for k, v in spec.items()}
+       for name, spec in TERMS.items()},
 }
 
 #: |slope| above this (mm/m, i.e. 10 %) is taken for a unit mistake.
@@ -150,6 +157,8 @@ def _check_ranges(name: str, p: dict, where: str) -> None:
     elif name == "pick":
         if p["t_s"] < 0.0:
             bad(f"t_s must be >= 0 (got {p['t_s']})")
+    elif name in TERMS and (msg := check_term(name, p)) is not None:
+        bad(msg)
 
 
 def as_effects(effects) -> tuple[Effect, ...]:
@@ -174,11 +183,14 @@ class Terms(NamedTuple):
     late_curl: tuple[float, float, float] | None   # (k, v_ref, v_min)
     picks: tuple[tuple[float, float, float, float], ...]  # (t, dvx, dvy, domega), sorted
     overrides: dict                         # ShotModel field -> value
+    extension: object = None                # terms.Extension or None
 
     @property
     def needs_ode(self) -> bool:
-        """Slope and patch couple speed, heading and position: no closed form."""
-        return self.slope_accel != (0.0, 0.0) or bool(self.patches)
+        """Slope, patch and extension terms couple speed, spin and position: no closed
+        form."""
+        return self.slope_accel != (0.0, 0.0) or bool(self.patches) or \
+            self.extension is not None
 
 
 def slope_acceleration(slope_mm_per_m: float, g: float = G) -> float:
@@ -198,7 +210,7 @@ def gather(effects) -> Terms:
     seen = set()
     for e in effects:
         p = e.params
-        if e.name in ("late_curl", "velocity_dependent_friction"):
+        if e.name in ("late_curl", "velocity_dependent_friction") or e.name in TERMS:
             if e.name in seen:
                 raise ParameterError("may be given only once", where=f"effect {e.name}")
             seen.add(e.name)
@@ -218,7 +230,8 @@ def gather(effects) -> Terms:
             if p["alpha_theta"] is not None:
                 overrides["alpha_theta"] = p["alpha_theta"]
     picks.sort(key=lambda q: q[0])
-    return Terms((ax, ay), tuple(patches), late, tuple(picks), overrides)
+    ext = gather_terms((e.name, e.params) for e in effects if e.name in TERMS)
+    return Terms((ax, ay), tuple(patches), late, tuple(picks), overrides, ext)
 
 
 def patch_factor(y, patches) -> np.ndarray | float:
