@@ -2,8 +2,8 @@
 
 When no named effect explains the baseline's residuals, discovery tries a library of
 smooth, switchable terms in the equations of motion, each a multiplier with a few
-coefficients (the physics is :mod:`curltrack.physics.terms`, integrated by the one
-simulator):
+coefficients (registry entries in :mod:`curltrack.physics.extensions`, their math in
+:class:`curltrack.physics.terms.Extension`, integrated by the one simulator):
 
 * ``friction_field`` -- friction varies periodically along the sheet (wavelength scanned
   on a grid, cosine and sine amplitudes linear);
@@ -14,7 +14,7 @@ simulator):
 They enter the search as nested candidates exactly like the named effects (linear scan
 on the Jacobian around the baseline, parametric-bootstrap look-elsewhere threshold,
 nonlinear refit in the simulator, blocked and leave-one-shot-out held-out error), at a
-false-alarm level of :data:`EXTENSION_LEVEL` each so that the four of them together add
+false-alarm level of ``physics.extensions.EXTENSION_LEVEL`` each so that the four of them together add
 at most 2 % to the false alarms.  :func:`choose` keeps one only when it explains the
 residuals (they then look like noise), no other extension comes close, and it beats
 every named effect by :data:`report.AMBIGUITY_MARGIN` in delta-BIC: a named effect that
@@ -29,17 +29,7 @@ import math
 
 import numpy as np
 
-from .candidates import Candidate, Param
-
-#: per-term false-alarm level of the bootstrap threshold (four terms: <= 2 % together)
-EXTENSION_LEVEL = 0.005
-#: shortest wavelength scanned (m): a 10 % field of 1 m moves a 2 m/s rock by ~0.05 mm
-LAMBDA_MIN_M = 1.0
-#: cells (m) of the piecewise-constant field behind the linear scan's columns
-CELL_M = 0.25
-#: the sheet needs this many metres of travel (two periods of the longest wavelength)
-MIN_TRAVEL_M = 4.0
-N_GRID = 60
+from ..physics.extensions import omega_ref
 
 #: kind -> the term added to the equations, for REPORT.json ``terms``
 FORMULAS = {
@@ -49,98 +39,6 @@ FORMULAS = {
     "translation_coupling": "dv/dt -> dv/dt (1 + c_s_per_rad |omega|)",
     "curl_spin_dependence": "a_T -> a_T ((omega^2 + omega_min^2) / omega_ref^2)^(p/2)",
 }
-
-
-def _effect(name, keys, extra=None):
-    """``to_effects`` of a term: the candidate's values as one Effect."""
-    def to_effects(values, shot_index, shots):
-        from ..physics import Effect
-
-        return (Effect(name, {**{k: float(values[k]) for k in keys}, **(extra or {})}),)
-    return to_effects
-
-
-def wavelength_grid(y_max: float, lam_min: float = LAMBDA_MIN_M) -> list:
-    """Wavelengths (m) from ``lam_min`` to half the travel, log-spaced so that the phase
-    drifts by at most ~a quarter period over the travel between neighbours."""
-    lam_max = 0.5 * y_max
-    if lam_max <= lam_min:
-        return []
-    out = [lam_min]
-    while out[-1] < lam_max:
-        out.append(out[-1] * (1.0 + max(out[-1] / (4.0 * y_max), 0.004)))
-    return [float(v) for v in out[:-1]] + [float(lam_max)]
-
-
-def build_extensions(shots, baseline: str) -> list:
-    """The extension candidates that these shots can inform."""
-    out = []
-    translating = [s for s in shots if s.translates]
-    both = [s for s in translating if s.spins]
-    if translating:
-        y_max = max(float(np.nanmax(s.obs["y"][s.use["y"]])) for s in translating)
-        lams = wavelength_grid(y_max)
-        if y_max >= MIN_TRAVEL_M and lams:
-            out.append(Candidate(
-                "friction_field",
-                [Param("amp_cos", 0.0, -0.6, 0.6), Param("amp_sin", 0.0, -0.6, 0.6)],
-                location=[Param("wavelength_m", lams[0], 0.5 * lams[0], 1.5 * lams[-1], "m")],
-                grid=[{"wavelength_m": v} for v in lams], extension=True,
-                to_effects=_effect("friction_field", ("wavelength_m", "amp_cos", "amp_sin")),
-                scan=_field_scan, level=EXTENSION_LEVEL, n_starts=1,
-                note=f"friction varies periodically along the sheet; wavelength scanned "
-                     f"{lams[0]:.1f}-{lams[-1]:.1f} m ({len(lams)} values)"))
-    if both:
-        v_max = max(float(s.start.get("v0", 0.0)) for s in both) or 2.0
-        w_abs = [abs(float(s.start.get("omega0", 0.0))) for s in both]
-        w_max = max(w_abs) or 2.0
-        w_ref = float(np.median(w_abs)) or 1.0
-        out.append(Candidate(
-            "spin_coupling", [Param("c_s_per_m", 0.0, -0.9 / v_max, 5.0, "s/m")],
-            extension=True, to_effects=_effect("spin_coupling", ("c_s_per_m",)),
-            level=EXTENSION_LEVEL, note="spin decay scaled by 1 + c v"))
-        out.append(Candidate(
-            "translation_coupling", [Param("c_s_per_rad", 0.0, -0.9 / w_max, 5.0, "s/rad")],
-            extension=True, to_effects=_effect("translation_coupling", ("c_s_per_rad",)),
-            level=EXTENSION_LEVEL, note="translation decay scaled by 1 + c |omega|"))
-        out.append(Candidate(
-            "curl_spin_dependence", [Param("p", 0.0, -3.0, 3.0)], extension=True,
-            to_effects=_effect("curl_spin_dependence", ("p",),
-                               {"omega_ref_rad_per_s": w_ref}),
-            level=EXTENSION_LEVEL,
-            note=f"a_T scaled by (|omega| / {w_ref:.2f} rad/s)^p"))
-    return out
-
-
-def _field_scan(base, fit0, cand, locs) -> list:
-    """Linear-scan columns of the field at every wavelength from one set of simulations.
-
-    In the linear limit the response to a friction multiplier 1 + delta(y) is the sum
-    over cells of delta's cell mean times the response to extra friction in that cell,
-    and a cell's response is that of a patch [a, inf) minus that of [b, inf) (closed
-    forms, ~ms each).  Cells of :data:`CELL_M` hold a cosine of the shortest wavelength
-    to within 2 % of its amplitude.
-    """
-    from .search import effect_columns
-
-    y_max = max(float(np.nanmax(s.obs["y"][s.use["y"]])) for s in base.shots if s.translates)
-    nodes = np.arange(0.0, y_max + 0.5 + CELL_M, CELL_M)
-    patch = Candidate("friction_patch", [Param("factor", 1.0, 0.05, 20.0)],
-                      location=[Param("y_start_m", 0.0, -1.0, 1e3, "m"),
-                                Param("y_end_m", 0.0, -1.0, 1e3, "m")])
-    far = float(nodes[-1] + 100.0)
-    half = np.column_stack([effect_columns(base, fit0, patch, {"y_start_m": float(a),
-                                                               "y_end_m": far})[:, 0]
-                            for a in nodes])
-    cells = half[:, :-1] - half[:, 1:]
-    a, b = nodes[:-1], nodes[1:]
-    out = []
-    for loc in locs:
-        k = 2.0 * math.pi / loc["wavelength_m"]
-        c = (np.sin(k * b) - np.sin(k * a)) / (k * (b - a))
-        s = (np.cos(k * a) - np.cos(k * b)) / (k * (b - a))
-        out.append(cells @ np.column_stack([c, s]))
-    return out
 
 
 # --- the fitted function, its band and the sentence ---------------------------------
@@ -222,7 +120,7 @@ def describe(sc, shots) -> dict:
     elif name == "curl_spin_dependence":
         cov = _sub_cov(fit, ["p"])
         th = np.array([p["p"]])
-        w_ref = float(sc.cand.to_effects({"p": 0.0}, 0, shots)[0].params["omega_ref_rad_per_s"])
+        w_ref = omega_ref(shots)
         w_min = 0.05
         x = np.linspace(0.0, max(abs(s.start.get("omega0", 2.0)) for s in shots), 100)
         vals, err = _band(lambda t, w: ((w * w + w_min ** 2) / w_ref ** 2) ** (0.5 * t[0]),

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from .._atomic import atomic_path, write_json
-from .residuals import binned_means
 from .extend import choose as choose_extension
 from .extend import extension_object
+from .residuals import binned_means
 from .scoring import bic
 from .shots import COORDS
 
@@ -18,6 +18,38 @@ from .shots import COORDS
 #: a weak pick and late curl, fit equally well; a wrong name is worse than saying so,
 #: so the verdict is then ``unexplained`` with the rivals listed (``ambiguous``).
 AMBIGUITY_MARGIN = 6.0
+
+
+#: a coordinate's RMS (or held-out RMS) this much above the baseline's counts as made
+#: worse (below it, the joint fit's trade between coordinates is within noise)
+WORSE_TOLERANCE = 1.02
+
+
+def at_bound(fit, bounds: dict, names=None) -> list:
+    """Free parameters of ``fit`` within 1e-6 of their span (or 1e-9) of a bound."""
+    out = []
+    for k in (fit.free if names is None else [n for n in names if n in fit.free]):
+        lo, hi = bounds.get(k, (None, None))
+        v = fit.values[k]
+        span = (hi - lo) if lo is not None and hi is not None else abs(v) + 1.0
+        tol = max(1e-6 * min(span, abs(v) + 1.0), 1e-9)
+        for b in (lo, hi):
+            if b is not None and abs(v - b) <= tol:
+                out.append(f"{k} = {v:.4g} at its bound {b:.4g}")
+    return out
+
+
+def _blockers(f, cand_bounds) -> list:
+    """Why a supported candidate must not be named (empty: nothing against it)."""
+    out = [f"parameter {b}" for b in cand_bounds]
+    for key, before, after in (("RMS", f["rms_before"], f["rms_after"]),
+                               ("held-out RMS", f["heldout_before_by_coord"],
+                                f["heldout_after_by_coord"])):
+        for c in COORDS:
+            b, a = (before or {}).get(c), (after or {}).get(c)
+            if b is not None and a is not None and a > WORSE_TOLERANCE * b:
+                out.append(f"{key} of {c} worse ({b:.3g} -> {a:.3g})")
+    return out
 
 
 def _rms_by_coord(model, r_raw) -> dict:
@@ -89,9 +121,16 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN) -> list:
     return sorted(out)
 
 
-def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
-    """Assemble REPORT.json and decide the verdict (rule in :mod:`curltrack.discover`)."""
+def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=None) -> dict:
+    """Assemble REPORT.json and decide the verdict (rule in :mod:`curltrack.discover`).
+
+    ``cand_bounds`` maps a candidate's name to its parameters at a bound (list of str).
+    """
     n = fit0.n
+    cand_bounds = cand_bounds or {}
+    base_bound = at_bound(fit0, base.bounds)
+    warnings = [f"baseline ({base.baseline}) parameter {b}: the baseline does not describe "
+                f"these shots within its range; no cause is named" for b in base_bound]
     rms0 = _rms_by_coord(base, fit0.r_raw)
     vals, errs = _baseline_params(fit0)
     findings = []
@@ -119,18 +158,25 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
             if "loso_rmse_after" in f:
                 ok_cv = ok_cv or f["loso_rmse_after"] < f["loso_rmse_before"]
             f["supported"] = bool(sc.delta_bic > max(thr, 0.0) and ok_cv)
+            if f["supported"]:
+                f["not_named_because"] = _blockers(f, cand_bounds.get(sc.name, []))
         else:
             f["supported"] = False
         if sc.extension:
             f["extension"] = True
         f["evidence"] = _evidence(sc, h0)
+        if f.get("not_named_because"):
+            f["evidence"] += "; not named: " + "; ".join(f["not_named_because"])
         findings.append(f)
         if f["supported"]:
             supported.append((sc, f))
+    blocked = [(sc, f) for sc, f in supported if f.get("not_named_because")]
+    supported = [(sc, f) for sc, f in supported if not f.get("not_named_because")]
     verdict, unexplained, extension = "none", None, None
     best_fit, best_model_name, best_params = fit0, None, {}
     ambiguous = []
-    ext = choose_extension(supported, scores, AMBIGUITY_MARGIN)
+    # a data-driven extension speaks only when it beats every named effect (discover.extend)
+    ext = None if base_bound else choose_extension(supported, scores, AMBIGUITY_MARGIN)
     named = [sc for sc in scores if not sc.extension]
     supported_named = [(sc, f) for sc, f in supported if not sc.extension]
     if ext is not None:
@@ -142,7 +188,11 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
         sc, f = max(supported_named, key=lambda p: p[0].delta_bic)
         best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
         ambiguous = rivals(sc, named)
-        if sc.structure_after.structured:
+        if base_bound:
+            verdict = "unexplained"
+            unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
+                               baseline_at_bound=base_bound)
+        elif sc.structure_after.structured:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name)
         elif ambiguous:
@@ -151,12 +201,13 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
                                ambiguous=[sc.name] + ambiguous)
         else:
             verdict = sc.name
-    elif supported or before.structured:
+    elif before.structured or blocked or supported:
         verdict = "unexplained"
         unexplained = dict(before.where or {}, after_model="baseline")
-        alike = [sc.name for sc, _ in supported]
-        if len(alike) > 1:
-            unexplained["ambiguous"] = alike
+        if len(supported) > 1:   # extensions that explain it alike: no one description
+            unexplained["ambiguous"] = [sc.name for sc, _ in supported]
+        if blocked:
+            unexplained["not_named"] = {sc.name: f["not_named_because"] for sc, f in blocked}
     if verdict == "unexplained":
         gain, k = _unexplained_gain(base, best_fit)
         w = unexplained
@@ -200,7 +251,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
                    "spins": s.spins, "t_stop_translation": s.t_stop_translation,
                    "t_stop_rotation": s.t_stop_rotation,
                    "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
-        "warnings": [w for s in shots for w in s.warnings],
+        "warnings": [w for s in shots for w in s.warnings] + warnings,
         "_plot": {"shots": shots, "model": base, "fit0": fit0, "fit1": best_fit,
                   "extended": best_model_name, "params": best_params,
                   "extension": extension},
@@ -224,7 +275,8 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
     One block of two rows per shot (at most ``max_shots``): the top row shows the data
     (dots), the baseline (line) and the extended model (dashed) for x, y (m) and theta
     (rad) against time; the bottom row their residuals (mm, mm, degrees) before (grey)
-    and after (colour) the extension.
+    and after (colour) the extension.  With a data-driven extension (verdict
+    ``extended``) a last row shows its fitted function with the 1-sigma band.
     """
     import matplotlib
 
@@ -235,9 +287,8 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
     shots, model, fit0, fit1, ext = p["shots"], p["model"], p["fit0"], p["fit1"], p["extended"]
     ns = min(len(shots), max_shots)
     ext_obj = report.get("extension")
-    rows = 2 * ns + (1 if ext_obj else 0)
-    fig, axes = plt.subplots(rows, 3, figsize=(13, 4.2 * ns + (3.2 if ext_obj else 0)),
-                             squeeze=False)
+    fig, axes = plt.subplots(2 * ns + bool(ext_obj), 3, squeeze=False,
+                             figsize=(13, 4.2 * ns + (3.2 if ext_obj else 0.0)))
     scale = {"x": 1e3, "y": 1e3, "theta": np.degrees(1.0)}
     unit = {"x": "mm", "y": "mm", "theta": "deg"}
     for j in range(ns):
@@ -268,13 +319,12 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
         axes[2 * j + 1, 0].legend(fontsize=7, loc="best")
     for ax in axes[2 * ns - 1]:
         ax.set_xlabel("t (s)")
-    if ext_obj:
+    if ext_obj:  # the fitted function of the extension with its band, full width
         from .extend import plot_function
 
-        gs = axes[-1, 0].get_gridspec()
         for ax in axes[-1]:
             ax.remove()
-        plot_function(fig.add_subplot(gs[-1, :]), ext_obj)
+        plot_function(fig.add_subplot(axes[0, 0].get_gridspec()[-1, :]), ext_obj)
     fig.suptitle(f"verdict: {report['verdict']}", fontsize=11)
     fig.tight_layout()
     with atomic_path(path) as tmp:
@@ -283,13 +333,15 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
 
 
 def _mark_effect(top, bot, ext, params, shot, pred, j):
-    """Shade where the named effect acts: a patch's stretch (in time), a pick's instant."""
-    if ext == "friction_patch":
-        inside = (pred["y"] >= params["y_start_m"]) & (pred["y"] < params["y_end_m"])
-        if inside.any():
-            t_in = shot.t[inside]
-            for ax in (top, bot):
-                ax.axvspan(t_in.min(), t_in.max(), color="C2", alpha=0.12, lw=0)
-    elif ext == "pick" and int(params.get("shot", 0)) == j:
+    """Shade where the named effect acts (its definition's marks: a patch's stretch in
+    time, a pick's instant)."""
+    from ..physics.effects import EFFECTS
+
+    if ext not in EFFECTS:
+        return
+    for mark in EFFECTS[ext].marks(params, j, shot.t, pred):
         for ax in (top, bot):
-            ax.axvline(params["t_s"], color="C2", lw=1, ls=":")
+            if mark[0] == "span":
+                ax.axvspan(mark[1], mark[2], color="C2", alpha=0.12, lw=0)
+            else:
+                ax.axvline(mark[1], color="C2", lw=1, ls=":")

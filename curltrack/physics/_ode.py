@@ -1,6 +1,7 @@
 """General path of the paper model: ``solve_ivp`` with stop events.
 
-Used when ``ice_slope`` or ``friction_patch`` couple speed, heading and position.  The
+Used when ``ice_slope`` couples speed and heading, or an extension multiplier
+(:class:`.terms.Extension`) couples friction to position, speed or spin.  The
 state is (x, y, w, psi, theta, q) with w = v^(1 - phi_y) and q = |omega|^(1 - phi_theta):
 in these variables the friction terms are constants (dw/dt = -(1 - phi_y) alpha_y g f(y)
 plus the slope term, dq/dt = -(1 - phi_theta) k_theta f(y)), so the right-hand side stays
@@ -18,10 +19,10 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .effects import heading_rate, patch_factor, transverse_gain
+from .terms import heading_rate, patch_factor, transverse_gain
 
 RTOL, ATOL = 1e-10, 1e-12
-#: extension terms (:mod:`.terms`) are fitted by discover with many simulations; 1e-8
+#: extension multipliers (:class:`.terms.Extension`) are fitted by discover with many simulations; 1e-8
 #: keeps finite-difference Jacobians smooth (jumps ~3e-7 m against responses of metres
 #: per unit) at half the cost of a periodic friction field at 1e-10
 RTOL_EXT, ATOL_EXT = 1e-8, 1e-10

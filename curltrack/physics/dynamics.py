@@ -25,7 +25,8 @@ import math
 import numpy as np
 
 from ..errors import ParameterError
-from .effects import gather, patch_factor
+from .effects import gather
+from .terms import patch_factor
 from .shot import ShotModel, Trajectory
 
 #: Integration horizon (s) when the caller gives no times: a rock still moving after
@@ -57,11 +58,10 @@ def solve(model: ShotModel, effects=(), horizon: float | None = None, method: st
     if method not in ("auto", "ode", "closed"):
         raise ParameterError(f"unknown method {method!r}; expected auto, ode or closed",
                              where="method")
-    if method == "closed" and (terms.slope_accel != (0.0, 0.0) or terms.extension):
-        raise ParameterError("ice_slope and extension terms need method 'ode'",
-                             where="method")
-    use_ode = method == "ode" or terms.slope_accel != (0.0, 0.0) or \
-        terms.extension is not None
+    if method == "closed" and terms.needs_ode:
+        raise ParameterError("a constant acceleration (ice_slope) or an extension "
+                             "multiplier needs method 'ode'", where="method")
+    use_ode = method == "ode" or terms.needs_ode
     horizon = MAX_DURATION_S if horizon is None else float(horizon)
     segments = (_ode_segments(model, terms, horizon) if use_ode
                 else _closed_segments(model, terms, horizon))

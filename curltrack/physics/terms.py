@@ -1,26 +1,39 @@
-"""Data-driven extension terms of the equations of motion (beyond the named effects).
+"""The kinds of term an effect can add to the equations of motion, and their math.
 
-Each term is a smooth multiplier on one part of the paper's equations
-(:mod:`curltrack.physics.shot`) with a few coefficients; ``discover`` fits them when no
-named effect explains the residuals (:mod:`curltrack.discover.extend`).  They are
-registered as effects (:data:`curltrack.physics.effects.EFFECTS`), so ``simulate
---effect NAME --param KEY=VALUE`` and the tests use the very same equations.  All
-multipliers are clipped at :data:`MIN_FACTOR` so that friction never changes sign.
+The solvers (:mod:`._quadrature`, :mod:`._ode`) know these five kinds and nothing about
+effect names; an effect (:mod:`curltrack.physics.effects`) says which of them it adds:
 
-``friction_field`` (``wavelength_m``; ``amp_cos`` = 0, ``amp_sin`` = 0)
-    Both friction coefficients vary periodically along the sheet:
-    alpha(y) = alpha [1 + amp_cos cos(2 pi y / wavelength) + amp_sin sin(2 pi y / wavelength)]
-    (the relative amplitude is hypot(amp_cos, amp_sin)).
-``spin_coupling`` (``c_s_per_m``)
-    The spin decays faster with the translation speed v (m/s):
-    d|omega|/dt = -k_theta |omega|^phi_theta (1 + c v).
-``translation_coupling`` (``c_s_per_rad``)
-    The translation decays faster with the spin: dv/dt = -k_y v^phi_y (1 + c |omega|).
-``curl_spin_dependence`` (``p``; ``omega_ref_rad_per_s`` = 1, ``omega_min_rad_per_s`` = 0.05)
-    The transverse acceleration follows the spin:
-    a_T ((omega^2 + omega_min^2) / omega_ref^2)^(p / 2), i.e. a_T (|omega|/omega_ref)^p
-    above omega_min (p > 0: the curl fades with the spin; the baseline, p = 0, keeps a_T
-    until the spin has stopped).
+``accel``
+    A constant acceleration ``(a_x, a_y)`` (m/s^2) in the shot frame; contributions add.
+    Couples the speed to the heading: integrated by the ODE path.
+``patch``
+    ``(y_start, y_end, factor)``: both friction coefficients multiplied by ``factor``
+    while ``y_start <= y < y_end`` (m); overlapping patches multiply.
+``transverse_gain``
+    ``(k, v_ref, v_min)``: a_T multiplied by ((v^2 + v_min^2) / v_ref^2)^(-k/2); at most one.
+``impulse``
+    ``(t, dvx, dvy, domega)``: a jump of velocity (m/s) and spin (rad/s) at time t (s),
+    applied in time order.
+``friction_law``
+    ``{ShotModel field: value}``: replaces the model's friction law (phi_y, alpha_y,
+    phi_theta, alpha_theta).
+
+Smooth multipliers of the data-driven extensions (``discover``'s library beyond the
+named effects; definitions in :mod:`curltrack.physics.extensions`), integrated by the
+ODE path, each at most once, gathered into :class:`Extension`:
+
+``friction_field``
+    ``(k, a, b)``: both friction coefficients multiplied by 1 + a cos(k y) + b sin(k y)
+    (k = 2 pi / wavelength, 1/m).
+``spin_coupling``
+    ``c`` (s/m): the rotational friction multiplied by 1 + c v.
+``translation_coupling``
+    ``c`` (s/rad): the translational friction multiplied by 1 + c |omega|.
+``curl_spin``
+    ``(p, omega_ref, omega_min)``: a_T multiplied by ((omega^2 + omega_min^2) /
+    omega_ref^2)^(p/2).
+
+Every multiplier is clipped at :data:`MIN_FACTOR`, so friction never changes sign.
 """
 
 from __future__ import annotations
@@ -28,65 +41,67 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-#: name -> {parameter: default}; ``None`` marks a required parameter
-TERMS: dict[str, dict[str, float | None]] = {
-    "friction_field": {"wavelength_m": None, "amp_cos": 0.0, "amp_sin": 0.0},
-    "spin_coupling": {"c_s_per_m": None},
-    "translation_coupling": {"c_s_per_rad": None},
-    "curl_spin_dependence": {"p": None, "omega_ref_rad_per_s": 1.0,
-                             "omega_min_rad_per_s": 0.05},
-}
+import numpy as np
 
+from ..rig import G
+
+#: the term kinds, in the order :class:`Terms` holds them (the last four: its extension)
+KINDS = ("accel", "patch", "transverse_gain", "impulse", "friction_law",
+         "friction_field", "spin_coupling", "translation_coupling", "curl_spin")
+EXTENSION_KINDS = KINDS[5:]
 #: multipliers of friction never fall below this (a fitted coefficient far off the data
 #: must not make friction push the rock)
 MIN_FACTOR = 0.05
 
 
-def check_term(name: str, p: dict) -> str | None:
-    """The reason ``p`` is out of range for term ``name`` (None when fine)."""
-    if name == "friction_field":
-        if p["wavelength_m"] <= 0.05:
-            return f"wavelength_m must be > 0.05 m (got {p['wavelength_m']})"
-        if math.hypot(p["amp_cos"], p["amp_sin"]) >= 0.95:
-            return "the amplitude hypot(amp_cos, amp_sin) must be < 0.95"
-    elif name == "spin_coupling" and abs(p["c_s_per_m"]) > 20.0:
-        return f"|c_s_per_m| = {abs(p['c_s_per_m'])} is above 20 s/m"
-    elif name == "translation_coupling" and abs(p["c_s_per_rad"]) > 20.0:
-        return f"|c_s_per_rad| = {abs(p['c_s_per_rad'])} is above 20 s/rad"
-    elif name == "curl_spin_dependence":
-        if abs(p["p"]) > 5.0:
-            return f"p = {p['p']} is outside [-5, 5]"
-        for key in ("omega_ref_rad_per_s", "omega_min_rad_per_s"):
-            if p[key] <= 0:
-                return f"{key} must be > 0 (got {p[key]})"
-    return None
+class Terms(NamedTuple):
+    """Effects gathered for the equations of motion (see :func:`effects.gather`)."""
+
+    slope_accel: tuple[float, float]        # (a_x, a_y) in m/s^2
+    patches: tuple[tuple[float, float, float], ...]   # (y_start, y_end, factor)
+    late_curl: tuple[float, float, float] | None   # (k, v_ref, v_min) of the transverse gain
+    picks: tuple[tuple[float, float, float, float], ...]  # (t, dvx, dvy, domega), sorted
+    overrides: dict                         # ShotModel field -> value
+    extension: "Extension | None" = None    # smooth multipliers (ODE path)
+
+    @property
+    def needs_ode(self) -> bool:
+        """Slopes and extension multipliers couple speed, spin and position."""
+        return self.slope_accel != (0.0, 0.0) or self.extension is not None
 
 
 class Extension(NamedTuple):
-    """Extension terms gathered for the equations of motion (None/0 when absent)."""
+    """The extension multipliers of one shot (None/0 when absent)."""
 
-    field: tuple[float, float, float] | None = None    # (k = 2 pi / wavelength, a_cos, a_sin)
+    field: tuple[float, float, float] | None = None    # (k = 2 pi / wavelength, a, b)
     spin_c: float = 0.0                                # s/m
     trans_c: float = 0.0                               # s/rad
     curl: tuple[float, float, float] | None = None     # (p, omega_ref, omega_min)
 
+    @classmethod
+    def from_terms(cls, kinds: dict) -> "Extension | None":
+        """From ``{kind: value}`` of :data:`EXTENSION_KINDS` (None when empty)."""
+        if not kinds:
+            return None
+        return cls(field=kinds.get("friction_field"), spin_c=kinds.get("spin_coupling", 0.0),
+                   trans_c=kinds.get("translation_coupling", 0.0), curl=kinds.get("curl_spin"))
+
+    def _field(self, y: float) -> float:
+        if self.field is None:
+            return 1.0
+        k, a, b = self.field
+        return max(1.0 + a * math.cos(k * y) + b * math.sin(k * y), MIN_FACTOR)
+
     def friction(self, y: float, omega_abs: float) -> float:
         """Multiplier of the translational friction at position ``y`` and spin |omega|."""
-        f = 1.0
-        if self.field is not None:
-            k, a, b = self.field
-            f += a * math.cos(k * y) + b * math.sin(k * y)
-        f = max(f, MIN_FACTOR)
+        f = self._field(y)
         if self.trans_c:
             f *= max(1.0 + self.trans_c * omega_abs, MIN_FACTOR)
         return f
 
     def spin_friction(self, y: float, v: float) -> float:
         """Multiplier of the rotational friction at position ``y`` and speed ``v``."""
-        f = 1.0
-        if self.field is not None:
-            k, a, b = self.field
-            f = max(1.0 + a * math.cos(k * y) + b * math.sin(k * y), MIN_FACTOR)
+        f = self._field(y)
         if self.spin_c:
             f *= max(1.0 + self.spin_c * v, MIN_FACTOR)
         return f
@@ -99,16 +114,54 @@ class Extension(NamedTuple):
         return ((omega_abs * omega_abs + w_min * w_min) / (w_ref * w_ref)) ** (0.5 * p)
 
 
-def gather_terms(items) -> Extension | None:
-    """``Extension`` from ``(name, params)`` pairs of extension terms (None if empty)."""
-    kw: dict = {}
-    for name, p in items:
-        if name == "friction_field":
-            kw["field"] = (2.0 * math.pi / p["wavelength_m"], p["amp_cos"], p["amp_sin"])
-        elif name == "spin_coupling":
-            kw["spin_c"] = p["c_s_per_m"]
-        elif name == "translation_coupling":
-            kw["trans_c"] = p["c_s_per_rad"]
-        elif name == "curl_spin_dependence":
-            kw["curl"] = (p["p"], p["omega_ref_rad_per_s"], p["omega_min_rad_per_s"])
-    return Extension(**kw) if kw else None
+def slope_acceleration(slope_mm_per_m: float, g: float = G) -> float:
+    """Downhill acceleration (m/s^2) along an axis that rises ``slope`` mm per m."""
+    return -g * math.sin(math.atan(slope_mm_per_m * 1e-3))
+
+
+def patch_factor(y, patches) -> np.ndarray | float:
+    """Friction multiplier at position(s) ``y`` (m): product of the patches covering y."""
+    f = np.ones_like(np.asarray(y, dtype=float))
+    for y0, y1, factor in patches:
+        f = np.where((y >= y0) & (y < y1), f * factor, f)
+    return f if f.ndim else float(f)
+
+
+def transverse_gain(v, late_curl):
+    """Multiplier of a_T at speed ``v`` (m/s), before the low-speed taper.
+
+    1 without a gain term; with ``(k, v_ref, v_min)`` it is ((v^2 + v_min^2) /
+    v_ref^2)^(-k/2), i.e. (v/v_ref)^(-k) for v >> v_min, bounded by (v_min/v_ref)^(-k)
+    as v -> 0.
+    """
+    if late_curl is None:
+        return np.ones_like(v) if isinstance(v, np.ndarray) else 1.0
+    k, v_ref, v_min = late_curl
+    return ((v * v * 1.0 + v_min * v_min) / (v_ref * v_ref)) ** (-0.5 * k)
+
+
+def taper(v, v_c: float):
+    """h(v) = 1 - exp(-(v/v_c)^2): 1 to within 1e-4 for v > 3 v_c, -> (v/v_c)^2 at v -> 0."""
+    if isinstance(v, float):  # the ODE's right-hand side: keep scalar calls cheap
+        return -math.expm1(-(v / v_c) ** 2)
+    z = np.asarray(v, dtype=float) / v_c
+    h = -np.expm1(-z * z)
+    return h if h.ndim else float(h)
+
+
+def heading_rate(a_perp, v, v_c: float):
+    """Rate of turn of the velocity (rad/s) for a transverse acceleration ``a_perp``.
+
+    Every transverse acceleration is tapered by h(v) = 1 - exp(-(v/v_c)^2) (see
+    :func:`taper`), so it vanishes with the speed and the direction of a vanishing velocity
+    is held instead of swinging round; the turn rate a_perp h(v) / v -> a_perp v / v_c^2
+    stays finite at every v and is exactly a_perp / v above a few v_c.  Without the taper
+    the heading integral of a_T / v diverges at the stop for lambda_y >= 2 (dry friction
+    included); with v_c = 1 cm/s it changes a draw's curl by ~1e-5 relative.
+    """
+    if isinstance(v, float):
+        return a_perp * -math.expm1(-(v / v_c) ** 2) / v if v > 0 else 0.0
+    v = np.asarray(v, dtype=float)
+    safe = np.where(v > 0, v, 1.0)
+    rate = np.where(v > 0, a_perp * taper(safe, v_c) / safe, 0.0)
+    return rate if rate.ndim else float(rate)
