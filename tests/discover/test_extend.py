@@ -35,7 +35,8 @@ def _seed():
 @pytest.mark.parametrize("family", FAMILIES)
 def test_simulator_terms_agree_with_independent_integrator(family):
     """The physics core's extension terms integrate the same equations as the test's own
-    solve_ivp (different state variables, different code) to < 1e-5 m / rad."""
+    solve_ivp (different state variables, different code) to < 5e-5 m / rad (the core
+    runs extensions at rtol 1e-8: ~1e-5 m over a 25 m draw, 1/40 of the noise)."""
     seed = _seed()
     rng = np.random.default_rng(seed)
     ice = draw_ice(rng)
@@ -59,7 +60,7 @@ def test_simulator_terms_agree_with_independent_integrator(family):
                   phi_theta=ice["phi_t"], alpha_theta=a_th, a_T=ice["a_T"])
     tr = simulate(m, [eff], t=t)
     err = max(np.abs(tr.x - x).max(), np.abs(tr.y - y).max(), np.abs(tr.theta - th).max())
-    assert err < 1e-5, (seed, family, err)
+    assert err < 5e-5, (seed, family, err)
     assert abs(tr.t_stop_translation - t_tr) < 1e-4 and abs(tr.t_stop_rotation - t_rot) < 1e-4, seed
 
 
@@ -121,13 +122,17 @@ def test_hidden_term_recovered_in_80_percent(family):
 
 @pytest.mark.slow
 def test_clean_worlds_stay_none():
-    """20 clean shots of the independent integrator: verdict none in >= 19."""
+    """20 clean shots of the independent integrator, the real-data issue's noise classes
+    in turn (white, ar1, steps, heavy): verdict none in >= 19."""
+    from curltrack.instrument import NOISE_CLASSES
+
     seed0 = _seed()
     bad = []
     for i in range(20):
         rng = np.random.default_rng(seed0 + i)
-        shots, _ = make_world("none", 0.0, rng)
+        shots, _ = make_world("none", 0.0, rng, noise=NOISE_CLASSES[i % len(NOISE_CLASSES)])
         rep = discover(shots, seed=seed0 + i, n_boot=200)
         if rep["verdict"] != "none":
-            bad.append((seed0 + i, rep["verdict"], (rep.get("extension") or {}).get("kind")))
+            bad.append((seed0 + i, NOISE_CLASSES[i % len(NOISE_CLASSES)], rep["verdict"],
+                        (rep.get("extension") or {}).get("kind")))
     assert len(bad) <= 1, bad
