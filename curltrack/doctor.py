@@ -349,8 +349,9 @@ def _geometry_checks(rep, rig, samples):
         rig.rock_height_m + depth, depth)
     if mismatch:  # (track stops with this error)
         rep.checks.append(Check("camera_height", "fail", mismatch,
-                                "fix [grid] spacing_x_m/spacing_y_m (and colors) or the "
-                                "[[markers]] positions in the rig", {"layout_scale": s}))
+                                "the grid's scale and the rock disagree: track would stop "
+                                "(see the line above for what to check)",
+                                {"layout_scale": s}))
         return
     h = rig.rock_height_m + rig.grid_depth_m / ICE_REFRACTIVE_INDEX
     H = h * s / (s - 1.0) if s > 1.0 else np.inf

@@ -588,7 +588,7 @@ def _honest_errors(res, sigma, times, label, coords, path, warnings):
     scatter, not the assumed noise); correlated residuals (a misfit, or an instrument
     whose errors persist) carry fewer independent points than rows, which this adds.
     """
-    chunks = np.split(res.residual, np.cumsum([len(t) for t in times])[:-1])
+    chunks = np.array_split(res.residual, len(times))  # one block per coordinate
     tau = max(correlation_time(c) for c in chunks)
     res.error_inflation = float(np.sqrt(tau))
     if tau > 1.0 and res.covar is not None:

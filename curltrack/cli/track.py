@@ -85,10 +85,14 @@ def track(
             return "none" if v is None else f"{v:.3f} {unit}"
 
         h = m.get("camera_height_m")
-        typer.echo(f"{n_ok}/{len(series.data)} frames measured; stop: translation "
-                   f"{fmt(m['t_stop_translation'])} (frame {m['stop_frame_translation']}), "
-                   f"rotation {fmt(m['t_stop_rotation'])} (frame {m['stop_frame_rotation']});"
-                   f" camera height {fmt(h, 'm')}")
+        def stop(kind):
+            t = m[f"t_stop_{kind}"]
+            return (f"{kind} not within the video" if t is None else
+                    f"{kind} {fmt(t)} (frame {m[f'stop_frame_{kind}']})")
+
+        typer.echo(f"{n_ok}/{len(series.data)} frames measured; stop: {stop('translation')}, "
+                   f"{stop('rotation')}; camera height "
+                   f"{fmt(h, 'm') if h is not None else 'not measured'}")
         for w in m.get("warnings", [])[:5]:
             typer.echo(f"warning: {w}", err=True)
         typer.echo(f"wrote {output} and {side}" + (f" and {overlay}" if overlay else ""))

@@ -298,6 +298,9 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
             use = s.use[c]
             t = s.t[use]
             top.plot(t, s.obs[c][use], ".", ms=2, color="k", alpha=0.5, label="data")
+            if len(t) == 0:  # not fitted (position-only theta): no model curve to show
+                top.text(0.5, 0.5, "not used", transform=top.transAxes, ha="center")
+                continue
             top.plot(s.t, fit0.predictions[j][c], "-", color="C0", lw=1.2,
                      label=f"baseline ({model.baseline})")
             if ext:
@@ -311,8 +314,6 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
                 bot.plot(t, r1, ".", ms=2, color="C3", label=f"+ {ext}")
             bot.axhline(0, color="k", lw=0.6)
             bot.set_ylabel(f"residual {c} ({unit[c]})")
-            if len(t) == 0:
-                top.text(0.5, 0.5, "not used", transform=top.transAxes, ha="center")
             _mark_effect(top, bot, ext, p.get("params", {}), s, fit1.predictions[j], j)
         axes[2 * j, 0].set_title(str(s.name).split("/")[-1], loc="left", fontsize=9)
         axes[2 * j, 0].legend(fontsize=7, loc="best")

@@ -35,8 +35,12 @@ GIVE_UP_FRAMES = 90
 ANCHOR_MAX_GAP = 12
 
 
-#: The rock's outline is measured on every OUTLINE_EVERY-th frame (~0.3 ms each).
-OUTLINE_EVERY = 3
+#: A frame whose grey levels vary less than this (std, 0-255) shows nothing: black,
+#: or a flat fade-in.  Leading blank frames are skipped (t = 0 at the first real one).
+BLANK_STD = 3.0
+BLANK = "blank frame (no image content)"
+#: The rock's outline (~1 ms a frame) is measured on about this many frames of a shot.
+OUTLINE_FRAMES = 40
 
 
 @dataclass
@@ -177,8 +181,12 @@ def _calibrate(image, rig, mask):
         return None, msg
 
 
-def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[FrameRecord], dict]:
+def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int = 2
+                 ) -> tuple[list[FrameRecord], dict]:
     """Run the per-frame loop over an iterable of :class:`curltrack.video.Frame`.
+
+    The rock's outline (the scale check's second ruler) is measured on every
+    ``outline_every``-th frame.
 
     Returns
     -------
@@ -204,6 +212,9 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
         if progress is not None:
             progress(1)
         img = fr.image
+        if not seen_markers and float(img[::8, ::8].std()) < BLANK_STD:  # black lead-in
+            rec.status = BLANK  # (before the detector sees it: it adapts to what it sees)
+            continue
         mf = fol.detect(img, fr.index)
         found = mf is not None and bool(mf.found.all())
         if not found:
@@ -253,7 +264,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
         c, phi, s, _ = similarity_fit(L, ice)
         mpp = pixel_scale(on_ice[M:])
         rec.centre_app, rec.phi, rec.scale = c, phi, s
-        if len(markers_ice) and fr.index % OUTLINE_EVERY == 0:  # the scale's 2nd ruler
+        if fr.index % outline_every == 0:  # the scale's second ruler
             rec.outline_m = outline_radius(img, pose.H, calib.K, calib.dist, c,
                                            rig.rock_diameter_m / 2)[0]
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
@@ -355,11 +366,19 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     try:
         with threadpool_limits(limits=max(n_threads, 1), user_api="blas"):
             records, loop_info = track_frames(frames, rig, path=video_path,
-                                              progress=bar[1] if bar else None)
+                                              progress=bar[1] if bar else None,
+                                              outline_every=max(2, total // OUTLINE_FRAMES))
     finally:
         cv2.setNumThreads(threads_before)
         if bar:
             bar[0].stop()
+    blank = _blank_lead(records) if start_frame is None else 0
+    if blank:  # black / empty frames before the scene: t = 0 at the first real frame
+        records, start = records[blank:], records[blank].frame
+        t0 = records[0].t
+        for r in records:
+            r.t -= t0
+        exclude = [i for i in exclude if i >= start]
     # Excluded frames are rows too (ok = 0), at their nominal time.
     dt = 1.0 / info.fps
     by_frame = {r.frame: r for r in records}
@@ -368,12 +387,24 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         by_frame[i] = FrameRecord(i, t_of(i), status="excluded by the user")
     records = [by_frame[i] for i in sorted(by_frame)]
     series = build_series(records, rig, info, start, loop_info, path=video_path)
+    if blank:
+        series.meta["warnings"].insert(0, f"frames {start - blank}-{start - 1} show neither "
+                                       f"rock nor grid (black or empty): skipped; t = 0 at "
+                                       f"frame {start} (give --start-frame to choose)")
     if overlay_path is not None:
         from .overlay import write_overlay
 
         write_overlay(video_path, overlay_path, records, series, loop_info, rig,
                       start=start, end=end, exclude=exclude)
     return series
+
+
+def _blank_lead(records) -> int:
+    """How many records at the start are blank frames (a black lead-in)."""
+    for k, r in enumerate(records):
+        if r.status != BLANK:
+            return k
+    return 0
 
 
 def _time_interpolator(records, start, dt):
