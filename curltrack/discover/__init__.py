@@ -10,6 +10,9 @@ Pipeline (one module per step):
 * :mod:`.candidates` -- the nested extensions (the simulator's effect terms);
 * :mod:`.search`, :mod:`.scoring` -- delta-BIC, look-elsewhere-calibrated thresholds
   (parametric block bootstrap), blocked and leave-one-shot-out cross-validation;
+* :mod:`.extend`     -- data-driven extensions of the equations (friction field along
+  the sheet, spin-speed couplings, the curl's dependence on the spin), scored like the
+  candidates, with a description and the fitted function;
 * :mod:`.report`     -- REPORT.json and the figure.
 
 Decision rule
@@ -27,6 +30,10 @@ the candidate's own residuals show (:func:`.search.rescore`: an instrument's per
 errors and heavy tails, which the AR(1) model misses).  A supported candidate with a
 parameter at its bound, or one that makes any coordinate's RMS or held-out RMS worse,
 is not named (``not_named_because``); a baseline parameter at its bound blocks any name.
+An extension (:mod:`.extend`) gives the verdict ``extended`` only when it
+is supported, its residuals look like noise, and it beats every named effect and every
+other extension by the same margin; a named effect that explains the data about as well
+keeps its name.
 """
 
 from __future__ import annotations
@@ -49,7 +56,7 @@ __all__ = ["discover", "write_report"]
 
 
 def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
-             n_boot: int = scoring.N_BOOT, effects=None) -> dict:
+             n_boot: int = scoring.N_BOOT, effects=None, extensions: bool = True) -> dict:
     """Find what the baseline model gets wrong in one or more measured shots.
 
     Parameters
@@ -67,13 +74,16 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     n_boot : int
         Bootstrap replicates per candidate.
     effects : list of str, optional
-        Restrict the candidates to these names.
+        Restrict the candidates to these names (extension kinds included).
+    extensions : bool
+        Also try the data-driven extension terms (:mod:`.extend`); verdict
+        ``extended`` when one of them, and no named effect, explains the residuals.
 
     Returns
     -------
     dict
         The REPORT.json content (see the contract): ``baseline``, ``findings`` sorted by
-        ``delta_bic``, ``verdict``, plus ``noise``, ``structure_before``, ``unexplained``
+        ``delta_bic``, ``verdict``, ``extension`` (or None), plus ``noise``, ``structure_before``, ``unexplained``
         and ``warnings``.  Private keys starting with ``_`` carry the fitted objects for
         the plot and are not serialised.
 
@@ -122,6 +132,8 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     h0_loso = heldout(fit0, f_shot, base) if f_shot is not None else None
 
     cands = build_candidates(shots, baseline)
+    if not extensions:
+        cands = [c for c in cands if not c.extension]
     if effects:
         cands = [c for c in cands if c.name in set(effects)]
     scores = [score_candidate(base, fit0, c, seg_slices, rng, n_boot=n_boot) for c in cands]

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._atomic import atomic_path, write_json
+from .extend import choose as choose_extension
+from .extend import extension_object
 from .residuals import binned_means
 from .scoring import bic
 from .shots import COORDS
@@ -160,6 +162,8 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                 f["not_named_because"] = _blockers(f, cand_bounds.get(sc.name, []))
         else:
             f["supported"] = False
+        if sc.extension:
+            f["extension"] = True
         f["evidence"] = _evidence(sc, h0)
         if f.get("not_named_because"):
             f["evidence"] += "; not named: " + "; ".join(f["not_named_because"])
@@ -168,13 +172,22 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
             supported.append((sc, f))
     blocked = [(sc, f) for sc, f in supported if f.get("not_named_because")]
     supported = [(sc, f) for sc, f in supported if not f.get("not_named_because")]
-    verdict, unexplained = "none", None
+    verdict, unexplained, extension = "none", None, None
     best_fit, best_model_name, best_params = fit0, None, {}
     ambiguous = []
-    if supported:
-        sc, f = max(supported, key=lambda p: p[0].delta_bic)
+    # a data-driven extension speaks only when it beats every named effect (discover.extend)
+    ext = None if base_bound else choose_extension(supported, scores, AMBIGUITY_MARGIN)
+    named = [sc for sc in scores if not sc.extension]
+    supported_named = [(sc, f) for sc, f in supported if not sc.extension]
+    if ext is not None:
+        verdict = "extended"
+        best_fit, best_model_name, best_params = ext.fit, ext.name, ext.params
+        extension = extension_object(ext, next(f for sc, f in supported if sc is ext),
+                                     shots, h0, h0_loso)
+    elif supported_named:
+        sc, f = max(supported_named, key=lambda p: p[0].delta_bic)
         best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
-        ambiguous = rivals(sc, scores)
+        ambiguous = rivals(sc, named)
         if base_bound:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
@@ -188,9 +201,11 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                                ambiguous=[sc.name] + ambiguous)
         else:
             verdict = sc.name
-    elif before.structured or blocked:
+    elif before.structured or blocked or supported:
         verdict = "unexplained"
         unexplained = dict(before.where or {}, after_model="baseline")
+        if len(supported) > 1:   # extensions that explain it alike: no one description
+            unexplained["ambiguous"] = [sc.name for sc, _ in supported]
         if blocked:
             unexplained["not_named"] = {sc.name: f["not_named_because"] for sc, f in blocked}
     if verdict == "unexplained":
@@ -225,6 +240,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                      "loso_rmse": h0_loso["scalar"] if h0_loso else None},
         "findings": findings,
         "verdict": verdict,
+        "extension": extension,
         "unexplained": unexplained,
         "structure_before": {"p_min_adjusted": before.p_min_adjusted,
                              "structured": before.structured, "where": before.where,
@@ -237,7 +253,8 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                    "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
         "warnings": [w for s in shots for w in s.warnings] + warnings,
         "_plot": {"shots": shots, "model": base, "fit0": fit0, "fit1": best_fit,
-                  "extended": best_model_name, "params": best_params},
+                  "extended": best_model_name, "params": best_params,
+                  "extension": extension},
     }
     return report
 
@@ -258,7 +275,8 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
     One block of two rows per shot (at most ``max_shots``): the top row shows the data
     (dots), the baseline (line) and the extended model (dashed) for x, y (m) and theta
     (rad) against time; the bottom row their residuals (mm, mm, degrees) before (grey)
-    and after (colour) the extension.
+    and after (colour) the extension.  With a data-driven extension (verdict
+    ``extended``) a last row shows its fitted function with the 1-sigma band.
     """
     import matplotlib
 
@@ -268,7 +286,9 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
     p = report["_plot"]
     shots, model, fit0, fit1, ext = p["shots"], p["model"], p["fit0"], p["fit1"], p["extended"]
     ns = min(len(shots), max_shots)
-    fig, axes = plt.subplots(2 * ns, 3, figsize=(13, 4.2 * ns), sharex="col", squeeze=False)
+    ext_obj = report.get("extension")
+    fig, axes = plt.subplots(2 * ns + bool(ext_obj), 3, squeeze=False,
+                             figsize=(13, 4.2 * ns + (3.2 if ext_obj else 0.0)))
     scale = {"x": 1e3, "y": 1e3, "theta": np.degrees(1.0)}
     unit = {"x": "mm", "y": "mm", "theta": "deg"}
     for j in range(ns):
@@ -298,8 +318,14 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
         axes[2 * j, 0].set_title(str(s.name).split("/")[-1], loc="left", fontsize=9)
         axes[2 * j, 0].legend(fontsize=7, loc="best")
         axes[2 * j + 1, 0].legend(fontsize=7, loc="best")
-    for ax in axes[-1]:
+    for ax in axes[2 * ns - 1]:
         ax.set_xlabel("t (s)")
+    if ext_obj:  # the fitted function of the extension with its band, full width
+        from .extend import plot_function
+
+        for ax in axes[-1]:
+            ax.remove()
+        plot_function(fig.add_subplot(axes[0, 0].get_gridspec()[-1, :]), ext_obj)
     fig.suptitle(f"verdict: {report['verdict']}", fontsize=11)
     fig.tight_layout()
     with atomic_path(path) as tmp:

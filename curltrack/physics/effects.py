@@ -309,3 +309,8 @@ register(EffectDef(
                                  p["domega_rad_per_s"])},
     check=lambda p: f"t_s must be >= 0 (got {p['t_s']})" if p["t_s"] < 0.0 else None,
     candidate=_pick_candidate, **at_a_time_in_one_shot("pick", _PICK_KEYS)))
+
+
+# the data-driven extensions (discover's library beyond the named effects) register
+# themselves after the five named effects, so discovery tries them last
+from . import extensions  # noqa: E402,F401
