@@ -263,10 +263,13 @@ class Compositor:
             return cv2.warpPerspective(tex.image, self.ice_homography(cam, tex),
                                        self.canvas_size, flags=cv2.INTER_LINEAR,
                                        borderMode=cv2.BORDER_REFLECT)
-        w, h = self.canvas_size
+        return self._ice_rolling(t, (0, 0), self.canvas_size, cam_at, tex)
+
+    def _ice_rolling(self, t, origin, box, cam_at, tex: Texture) -> np.ndarray:
+        """The ice in the canvas block ``box`` (w, h) at ``origin``, rows at their times."""
         mx, my = self._coarse_maps(
             lambda X, Y: self._rolling_map(t, X, Y, lambda c, _: self.ice_homography(c, tex),
-                                           cam_at, lambda _: None), 0, 0, w, h)
+                                           cam_at, lambda _: None), *origin, *box)
         return cv2.remap(tex.image, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
 
     def _row_offset(self, X, Y) -> np.ndarray:
@@ -321,22 +324,16 @@ class Compositor:
 
     def _box_rolling(self, t, origin, box, cam_at, layers_at, tex) -> np.ndarray:
         """The box around the rock at sub-frame ``t``, each row at its own time."""
-        x0, y0 = origin
-        w, h = box
-        mx, my = self._coarse_maps(
-            lambda X, Y: self._rolling_map(t, X, Y, lambda c, _: self.ice_homography(c, tex),
-                                           cam_at, lambda _: None), x0, y0, w, h)
-        comp = cv2.remap(tex.image, mx, my, cv2.INTER_LINEAR,
-                         borderMode=cv2.BORDER_REFLECT).astype(np.float32)
-        for j, (sprite, _) in enumerate(layers_at(t)):
-            def pose(tk, j=j, sprite=sprite):
-                layers = layers_at(tk)
-                found = [p for s, p in layers if s is sprite]
-                return found[0] if found else dict(layers_at(t))[sprite]
+        comp = self._ice_rolling(t, origin, box, cam_at, tex).astype(np.float32)
+        for sprite, pose_t in layers_at(t):
+            def pose(tk, sprite=sprite, pose_t=pose_t):
+                # (a layer that leaves at a knot, the broom far off, keeps its pose at t)
+                found = [p for s, p in layers_at(tk) if s is sprite]
+                return found[0] if found else pose_t
             mx, my = self._coarse_maps(
                 lambda X, Y: self._rolling_map(
                     t, X, Y, lambda c, p: self.sprite_homography(c, sprite, p), cam_at, pose),
-                x0, y0, w, h)
+                *origin, *box)
             warped = cv2.remap(sprite.rgba, mx, my, cv2.INTER_LINEAR,
                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)
             comp *= 1.0 - warped[..., 3:4]

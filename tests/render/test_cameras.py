@@ -333,3 +333,31 @@ def test_pole_sways_at_its_resonance():
     peak = np.fft.rfftfreq(len(t), 1 / 50)[np.argmax(spec)]
     assert abs(peak - f0) < 0.1 * f0, f"seed {seed}: sway peaks at {peak:.2f} Hz, not {f0:.2f}"
     assert np.rad2deg(np.std(tilt)) == pytest.approx(0.5, rel=0.5), seed
+
+
+def test_rolling_shutter_row_is_the_global_shutter_image_at_that_rows_time():
+    """Row v of a rolling-shutter frame = row v of a global-shutter frame exposed at
+    t + R ((v + 0.5) / H - 0.5): a handheld camera (the ice moves, shakes and turns) over
+    a fast rock, with the broom passing (a layer entering and leaving)."""
+    seed = _seed()
+    rng = np.random.default_rng(seed)
+    readout = float(rng.uniform(0.015, 0.03))
+    base = dict(width=320, height=240, camera=CameraConfig(motion="handheld", view_m=1.3),
+                occlusion=True, occlusion_t_s=0.1, demosaic=False, vignetting=0.0, **CLEAN)
+    shot = _fast_shot(rng, 0.2)
+    rs = Production(shot, default_rig(), RenderConfig(sensor=SensorConfig(readout_s=readout),
+                                                      **base), seed=seed)
+    gs = Production(shot, default_rig(), RenderConfig(**base), seed=seed)
+    k = int(rng.integers(1, rs.n_frames))
+    img = next(rs.frames(k, k + 1))[0].astype(float)
+    gs._scene()
+    worst, moved = 0.0, 0.0
+    for v in rng.choice(np.arange(10, 230), 6, replace=False):
+        tv = rs.t_frames[k] + readout * ((v + 0.5) / 240 - 0.5)
+        ref = gs.comp.frame(np.array([tv]), gs.path.camera, gs.layers_at, gs.tex,
+                            index=k).astype(float)
+        at_t = next(gs.frames(k, k + 1))[0].astype(float)
+        worst = max(worst, np.abs(img[v] - ref[v]).mean())
+        moved = max(moved, np.abs(at_t[v] - ref[v]).mean())
+    assert moved > 3 * worst, f"seed {seed}: rows at t and t + tau hardly differ ({moved:.2f})"
+    assert worst < 0.8, f"seed {seed}: a rolling-shutter row {worst:.2f} levels off its time"
