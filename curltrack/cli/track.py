@@ -76,6 +76,8 @@ def track(
                          exclude_frames=excl, overlay_path=overlay,
                          progress=not no_progress and sys.stderr.isatty())
     series.meta["rig"] = str(rig)
+    if overlay is not None:
+        series.meta["overlay"] = str(overlay)  # `curltrack review` embeds it
     side = write_series(output, series)
     if not quiet:
         m = series.meta
@@ -85,10 +87,14 @@ def track(
             return "none" if v is None else f"{v:.3f} {unit}"
 
         h = m.get("camera_height_m")
-        typer.echo(f"{n_ok}/{len(series.data)} frames measured; stop: translation "
-                   f"{fmt(m['t_stop_translation'])} (frame {m['stop_frame_translation']}), "
-                   f"rotation {fmt(m['t_stop_rotation'])} (frame {m['stop_frame_rotation']});"
-                   f" camera height {fmt(h, 'm')}")
+        def stop(kind):
+            t = m[f"t_stop_{kind}"]
+            return (f"{kind} not within the video" if t is None else
+                    f"{kind} {fmt(t)} (frame {m[f'stop_frame_{kind}']})")
+
+        typer.echo(f"{n_ok}/{len(series.data)} frames measured; stop: {stop('translation')}, "
+                   f"{stop('rotation')}; camera height "
+                   f"{fmt(h, 'm') if h is not None else 'not measured'}")
         for w in m.get("warnings", [])[:5]:
             typer.echo(f"warning: {w}", err=True)
         typer.echo(f"wrote {output} and {side}" + (f" and {overlay}" if overlay else ""))

@@ -12,7 +12,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from .._atomic import atomic_path, write_json, write_text
+from .._atomic import atomic_path, verify_video, write_json, write_text
 from ..rig import Rig
 from ..series import Series, write_series
 from .config import RenderConfig
@@ -33,9 +33,9 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
     rig : Rig
         Grid, rock and markers (and the frame rate / camera height, when given).
     video_path : path
-        Output mp4 (written atomically).  Beside it: ``<stem>.rig.toml`` (the rig, with
-        the frame rate unless it is variable) and ``<stem>.render.json`` (every setting
-        and random choice).
+        Output mp4 (written atomically).  Beside it: ``<stem>.rig.toml`` (the rig; no
+        frame rate: the container has it) and ``<stem>.render.json`` (every setting and
+        random choice).
     truth_path : path, optional
         Where to write the truth series (CSV or Parquet + sidecar JSON).
     config : RenderConfig, optional
@@ -75,9 +75,11 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
         writer = open_writer(tmp, prod.fps, (prod.cfg.width, prod.cfg.height),
                              prod.cfg.encoding, sen.field_order if sen.interlaced else None,
                              prod.cam_cfg.pixel_aspect)
+        written = 0
         try:
             for img, info in prod.frames():
                 writer.write(img, info.t)
+                written += 1
                 if progress and (info.index % 30 == 0 or info.index == prod.n_frames - 1):
                     print(f"\rrender: frame {info.index + 1}/{prod.n_frames}", end="",
                           file=sys.stderr)
@@ -85,13 +87,14 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
             writer.close()
         if progress:
             print(file=sys.stderr)
+        verify_video(tmp, written, video_path)
     truth = prod.truth()
     if truth_path is not None:
         write_series(truth_path, truth)
         truth.path = Path(truth_path)
     stem = video_path.with_suffix("")
-    # a variable frame rate has no fps: the container's timestamps are the truth
-    fps = None if truth.meta["variable_frame_rate"] else prod.fps
-    write_text(f"{stem}.rig.toml", replace(rig, fps=fps, source=None).to_toml())
+    # no [camera].fps: time comes from the container (a rig's fps that disagrees with
+    # a re-encoded copy of the video would be an error, not a silent override)
+    write_text(f"{stem}.rig.toml", replace(rig, fps=None, source=None).to_toml())
     write_json(f"{stem}.render.json", truth.meta["render"])
     return truth
