@@ -125,17 +125,22 @@ def main(argv=None) -> int:
     ap.add_argument("--table", type=Path, default=None, help="write the markdown table here")
     ap.add_argument("--no-track", action="store_true")
     ap.add_argument("--random-kind", action="store_true", help="kinds at random, not in turn")
+    ap.add_argument("--only", type=str, default=None,
+                    help="comma-separated set-up indices to run (the same set-ups as in the "
+                    "full sweep: several processes can share one)")
     a = ap.parse_args(argv)
     seed = a.seed if a.seed is not None else int(np.random.SeedSequence().entropy % 2**32)
     a.out.mkdir(parents=True, exist_ok=True)
     print(f"sweep seed {seed}, {a.n} set-ups, scale {a.scale}", file=sys.stderr)
     rows = []
-    for i in range(a.n):
+    todo = range(a.n) if a.only is None else [int(v) for v in a.only.split(",")]
+    for i in todo:
         rows.append(run(i, seed, a.n, a.scale, a.out, not a.no_track, a.random_kind))
         print(rows[-1], file=sys.stderr, flush=True)
         text = (f"Camera sweep: seed {seed}, scale {a.scale}, "
                 f"`python scripts/sweep_cameras.py --n {a.n} --seed {seed} "
-                f"--scale {a.scale}`\n\n" + table(rows) + "\n")
+                f"--scale {a.scale}" + (f" --only {a.only}" if a.only else "") + "`\n\n"
+                + table(rows) + "\n")
         if a.table:
             a.table.write_text(text)
     print(table(rows))

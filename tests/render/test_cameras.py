@@ -109,8 +109,7 @@ def test_interlaced_h264_container_flags_timestamps_and_aspect(tmp_path):
     assert len(frames) == len(t0) == truth.meta["n_frames"], seed
     assert all(f.interlaced_frame for f in frames), seed
     assert np.allclose([f.time for f in frames], t0, atol=1 / 90000), seed
-    rig = (tmp_path / "dv.rig.toml").read_text()
-    assert "fps = 29.97002997" in rig, rig
+    assert "fps" not in (tmp_path / "dv.rig.toml").read_text()  # the container has it
 
 
 def test_chroma_subsampling_takes_the_colour_of_thin_vertical_threads():
