@@ -211,6 +211,11 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
     sigma_xy = est.k * np.hypot(SIGMA_STAT_SCALE * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
                                 SIGMA_MISFIT_SCALE * sig_r)
+    sigma_xy = np.hypot(sigma_xy, shot["origin_sigma_m"])
+    if shot["origin_sigma_m"] > 1e-3:
+        warnings.append(f"{path}: the first measured frame is at t = {t[ok][0]:.2f} s: the "
+                        "origin (the rock at t = 0) is extrapolated back to it, uncertain by "
+                        f"~{1e3 * shot['origin_sigma_m']:.0f} mm (included in sigma_xy)")
     sigma_theta = sig_m / max(lever, 1e-6)
     med = np.median(scale[ok])
     spread = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
