@@ -31,6 +31,9 @@ def check_writable(path) -> None:
         if exc.errno == errno.ELOOP:
             raise CurltrackError("symbolic link loop (the link points, through other "
                                  "links, back to itself)", path=path) from None
+        if exc.errno == errno.ENOTDIR:
+            raise CurltrackError("a part of the path is not a directory (a file stands "
+                                 "where a folder should be)", path=path) from None
         raise CurltrackError(f"cannot use as an output ({exc.strerror})", path=path) from None
     if st is not None and not stat.S_ISREG(st.st_mode):
         if stat.S_ISDIR(st.st_mode):

@@ -2,7 +2,8 @@
 
 Columns (contract): ``frame`` (video frame index), ``t`` (s since the start frame),
 ``x``, ``y`` (m, rock centre on the ice), ``theta`` (rad, cumulative, CCW from above),
-``ok`` (1 = measured).  Optional: ``sigma_xy`` (m), ``sigma_theta`` (rad), ``quality``
+``ok`` (1 = measured; a row with x, y and an empty theta is a position-only
+measurement, see :attr:`Series.theta_measured`).  Optional: ``sigma_xy`` (m), ``sigma_theta`` (rad), ``quality``
 and anything else (kept as is).
 """
 
@@ -52,6 +53,15 @@ class Series:
     def measured(self) -> pd.DataFrame:
         """Rows with ``ok`` = 1."""
         return self.data[self.data["ok"] == 1]
+
+    @property
+    def theta_measured(self) -> bool:
+        """Whether the instrument measured the rotation: the sidecar's
+        ``theta_measured`` if given, else whether any measured row has a theta."""
+        flag = self.meta.get("theta_measured")
+        if flag is not None:
+            return bool(flag)
+        return bool(np.isfinite(self.measured["theta"].to_numpy(float)).any())
 
     @property
     def name(self) -> str:
@@ -148,13 +158,20 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
                           f"increase){hint}", path=name, where=f"row {row + 2}")
     out["frame"] = out["frame"].astype(int)
     out["ok"] = out["ok"].astype(int)
-    vals = out[["x", "y", "theta"]].to_numpy()
-    holes = (out["ok"].to_numpy() == 1) & ~np.isfinite(vals).all(axis=1)
+    ok = out["ok"].to_numpy() == 1
+    holes = ok & ~np.isfinite(out[["x", "y"]].to_numpy()).all(axis=1)
     if holes.any():
         rows = np.flatnonzero(holes)
-        warnings.append(f"{name}: {len(rows)} row(s) marked ok=1 have empty/NaN x, y or "
-                        f"theta (first at row {rows[0] + 2}); treated as ok=0")
+        warnings.append(f"{name}: {len(rows)} row(s) marked ok=1 have empty/NaN x or y "
+                        f"(first at row {rows[0] + 2}); treated as ok=0")
         out.loc[holes, "ok"] = 0
+    # position-only rows (contract): x, y measured, theta empty -- kept; theta is then
+    # simply not used there.  A series with theta on some rows only is said so.
+    no_theta = ok & ~holes & ~np.isfinite(out["theta"].to_numpy())
+    if no_theta.any() and not no_theta.sum() == (ok & ~holes).sum():
+        rows = np.flatnonzero(no_theta)
+        warnings.append(f"{name}: {len(rows)} measured row(s) have no theta (first at row "
+                        f"{rows[0] + 2}); x, y kept, theta not used there")
     return out, warnings
 
 

@@ -76,6 +76,8 @@ def track(
                          exclude_frames=excl, overlay_path=overlay,
                          progress=not no_progress and sys.stderr.isatty())
     series.meta["rig"] = str(rig)
+    if overlay is not None:
+        series.meta["overlay"] = str(overlay)  # `curltrack review` embeds it
     side = write_series(output, series)
     if not quiet:
         m = series.meta

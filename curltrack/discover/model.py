@@ -3,7 +3,9 @@
 Parameters (SI units):
 
 * shared by the shots (one sheet of ice): ``phi_y``, ``alpha_y`` (translation friction
-  mu = alpha v^phi, alpha in (m/s)^-phi), ``phi_theta``, ``alpha_theta`` (rotation),
+  mu = alpha v^phi, alpha in (m/s)^-phi), ``phi_theta``, ``alpha_theta`` (rotation) --
+  with several shots alpha is per shot (``alpha_y[i]``, ``alpha_theta[i]``): one sheet,
+  not identical friction under every throw,
   ``a_T`` (m/s^2, the size of the transverse acceleration; its direction follows the
   spin, so shots of opposite spin curl to opposite sides);
 * per shot ``i``: ``v0[i]`` (m/s), ``omega0[i]`` (rad/s, > 0 counter-clockwise), and the
@@ -33,7 +35,8 @@ from .shots import COORDS
 SHARED = ("phi_y", "alpha_y", "phi_theta", "alpha_theta", "a_T")
 PER_SHOT = ("v0", "omega0", "x0", "y0", "theta0", "skew")
 
-#: (lower, upper, finite-difference step) of every model parameter
+#: (lower, upper, finite-difference step) of every baseline parameter (an effect's come
+#: from its definition in the registry, :mod:`curltrack.physics.effects`)
 _BOUNDS = {
     "phi_y": (-3.0, 0.9, 1e-4), "phi_theta": (-3.0, 0.9, 1e-4),
     "alpha_y": (1e-6, 5.0, None), "alpha_theta": (1e-6, 5.0, None),
@@ -41,11 +44,6 @@ _BOUNDS = {
     "v0": (0.0, 20.0, 1e-5), "omega0": (-60.0, 60.0, 1e-5),
     "x0": (-1.0, 1.0, 1e-5), "y0": (-1.0, 1.0, 1e-5), "theta0": (-1.0, 1.0, 1e-5),
     "skew": (-0.5, 0.5, 1e-5),
-    "slope_x_mm_per_m": (None, None, 1e-3), "slope_y_mm_per_m": (None, None, 1e-3),
-    "factor": (None, None, 1e-4), "y_start_m": (None, None, 1e-3), "y_end_m": (None, None, 1e-3),
-    "k": (None, None, 1e-4), "t_s": (None, None, 1e-3),
-    "dvx_m_per_s": (None, None, 1e-5), "dvy_m_per_s": (None, None, 1e-5),
-    "domega_rad_per_s": (None, None, 1e-4),
 }
 
 
@@ -160,12 +158,24 @@ class JointModel:
         free_shared = []
         if trans:
             free_shared += ["alpha_y"] + ([] if baseline == "dry" else ["phi_y"])
-            if spin and any(s.translates and s.spins for s in shots):
+            if any(s.curls for s in shots):
                 free_shared.append("a_T")
         if spin:
             free_shared += ["alpha_theta"] + ([] if baseline == "dry" else ["phi_theta"])
+        # shots of one session share the ice but not the same friction (the paper's pure
+        # rotations on one sheet span lambda_theta 1.55-1.66; a draw's rotation stops
+        # with its translation): phi is shared, alpha is each shot's own
+        self.alpha_per_shot = len(shots) > 1
+        if self.alpha_per_shot:
+            free_shared = [n for n in free_shared if not n.startswith("alpha")]
         self.free = list(free_shared)
         for i, s in enumerate(shots):
+            if self.alpha_per_shot:
+                for name, use in (("alpha_y", s.translates),
+                                  ("alpha_theta", s.spins and s.theta_measured)):
+                    self.values[f"{name}[{i}]"] = float(s.start.get(name, self.values[name]))
+                    if use:
+                        self.free.append(f"{name}[{i}]")
             for name in PER_SHOT:
                 key = f"{name}[{i}]"
                 self.values[key] = float(s.start.get(name, 0.0)) if name in s.start else 0.0
@@ -176,6 +186,8 @@ class JointModel:
         for name in self.free + list(self.values):
             lo, hi, _ = _BOUNDS[_base(name)]
             self.bounds[name] = (lo, hi)
+        self._cand_steps = {p.name: p.step for p in cand.params if p.step is not None} \
+            if cand is not None else {}
         if cand is not None:
             for p in cand.params:
                 if p.name not in cand.releases:  # released baseline params keep values
@@ -212,10 +224,14 @@ class JointModel:
         s = self.shots[i]
         t = s.t if t is None else t
         v = values
-        model = self._ShotModel(v0=v[f"v0[{i}]"], omega0=v[f"omega0[{i}]"],
-                                phi_y=v["phi_y"], alpha_y=v["alpha_y"],
-                                phi_theta=v["phi_theta"], alpha_theta=v["alpha_theta"],
-                                a_T=v["a_T"], R=self.R, r=self.r_band)
+        if s.theta_measured:
+            spin = dict(omega0=v[f"omega0[{i}]"], phi_theta=v["phi_theta"],
+                        alpha_theta=v.get(f"alpha_theta[{i}]", v["alpha_theta"]))
+        else:  # position-only: the curl's side, a spin that lasts as long as the slide
+            spin = dict(omega0=float(s.spin), alpha_theta=None)
+        model = self._ShotModel(v0=v[f"v0[{i}]"], phi_y=v["phi_y"],
+                                alpha_y=v.get(f"alpha_y[{i}]", v["alpha_y"]),
+                                a_T=v["a_T"], R=self.R, r=self.r_band, **spin)
         eff = effects_for(self.cand, self._effect_values(v), i, self.shots)
         tr = self._simulate(model, effects=eff, t=t)
         c, sn = np.cos(v[f"skew[{i}]"]), np.sin(v[f"skew[{i}]"])
@@ -268,13 +284,13 @@ class JointModel:
         i = _shot_of(name)
         if i is not None:
             return {i}
-        if self.cand is not None and self.cand.name == "pick" and name in \
+        if self.cand is not None and self.cand.per_shot and name in \
                 {p.name for p in self.cand.params}:
             return {int((self.cand_fixed or {}).get("shot", 0))}
         return None  # all shots
 
     def _step(self, name, value):
-        st = _BOUNDS[_base(name)][2]
+        st = self._cand_steps[name] if name in self._cand_steps else _BOUNDS[_base(name)][2]
         return st if st is not None else max(1e-4 * abs(value), 1e-9)
 
     def jacobian_raw(self, values, base_vec=None, base_preds=None):

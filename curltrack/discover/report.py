@@ -18,6 +18,38 @@ from .shots import COORDS
 AMBIGUITY_MARGIN = 6.0
 
 
+#: a coordinate's RMS (or held-out RMS) this much above the baseline's counts as made
+#: worse (below it, the joint fit's trade between coordinates is within noise)
+WORSE_TOLERANCE = 1.02
+
+
+def at_bound(fit, bounds: dict, names=None) -> list:
+    """Free parameters of ``fit`` within 1e-6 of their span (or 1e-9) of a bound."""
+    out = []
+    for k in (fit.free if names is None else [n for n in names if n in fit.free]):
+        lo, hi = bounds.get(k, (None, None))
+        v = fit.values[k]
+        span = (hi - lo) if lo is not None and hi is not None else abs(v) + 1.0
+        tol = max(1e-6 * min(span, abs(v) + 1.0), 1e-9)
+        for b in (lo, hi):
+            if b is not None and abs(v - b) <= tol:
+                out.append(f"{k} = {v:.4g} at its bound {b:.4g}")
+    return out
+
+
+def _blockers(f, cand_bounds) -> list:
+    """Why a supported candidate must not be named (empty: nothing against it)."""
+    out = [f"parameter {b}" for b in cand_bounds]
+    for key, before, after in (("RMS", f["rms_before"], f["rms_after"]),
+                               ("held-out RMS", f["heldout_before_by_coord"],
+                                f["heldout_after_by_coord"])):
+        for c in COORDS:
+            b, a = (before or {}).get(c), (after or {}).get(c)
+            if b is not None and a is not None and a > WORSE_TOLERANCE * b:
+                out.append(f"{key} of {c} worse ({b:.3g} -> {a:.3g})")
+    return out
+
+
 def _rms_by_coord(model, r_raw) -> dict:
     out = {}
     for c in COORDS:
@@ -87,9 +119,16 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN) -> list:
     return sorted(out)
 
 
-def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
-    """Assemble REPORT.json and decide the verdict (rule in :mod:`curltrack.discover`)."""
+def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=None) -> dict:
+    """Assemble REPORT.json and decide the verdict (rule in :mod:`curltrack.discover`).
+
+    ``cand_bounds`` maps a candidate's name to its parameters at a bound (list of str).
+    """
     n = fit0.n
+    cand_bounds = cand_bounds or {}
+    base_bound = at_bound(fit0, base.bounds)
+    warnings = [f"baseline ({base.baseline}) parameter {b}: the baseline does not describe "
+                f"these shots within its range; no cause is named" for b in base_bound]
     rms0 = _rms_by_coord(base, fit0.r_raw)
     vals, errs = _baseline_params(fit0)
     findings = []
@@ -117,12 +156,18 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
             if "loso_rmse_after" in f:
                 ok_cv = ok_cv or f["loso_rmse_after"] < f["loso_rmse_before"]
             f["supported"] = bool(sc.delta_bic > max(thr, 0.0) and ok_cv)
+            if f["supported"]:
+                f["not_named_because"] = _blockers(f, cand_bounds.get(sc.name, []))
         else:
             f["supported"] = False
         f["evidence"] = _evidence(sc, h0)
+        if f.get("not_named_because"):
+            f["evidence"] += "; not named: " + "; ".join(f["not_named_because"])
         findings.append(f)
         if f["supported"]:
             supported.append((sc, f))
+    blocked = [(sc, f) for sc, f in supported if f.get("not_named_because")]
+    supported = [(sc, f) for sc, f in supported if not f.get("not_named_because")]
     verdict, unexplained = "none", None
     best_fit, best_model_name, best_params = fit0, None, {}
     ambiguous = []
@@ -130,7 +175,11 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
         sc, f = max(supported, key=lambda p: p[0].delta_bic)
         best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
         ambiguous = rivals(sc, scores)
-        if sc.structure_after.structured:
+        if base_bound:
+            verdict = "unexplained"
+            unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
+                               baseline_at_bound=base_bound)
+        elif sc.structure_after.structured:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name)
         elif ambiguous:
@@ -139,9 +188,11 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
                                ambiguous=[sc.name] + ambiguous)
         else:
             verdict = sc.name
-    elif before.structured:
+    elif before.structured or blocked:
         verdict = "unexplained"
         unexplained = dict(before.where or {}, after_model="baseline")
+        if blocked:
+            unexplained["not_named"] = {sc.name: f["not_named_because"] for sc, f in blocked}
     if verdict == "unexplained":
         gain, k = _unexplained_gain(base, best_fit)
         w = unexplained
@@ -184,7 +235,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
                    "spins": s.spins, "t_stop_translation": s.t_stop_translation,
                    "t_stop_rotation": s.t_stop_rotation,
                    "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
-        "warnings": [w for s in shots for w in s.warnings],
+        "warnings": [w for s in shots for w in s.warnings] + warnings,
         "_plot": {"shots": shots, "model": base, "fit0": fit0, "fit1": best_fit,
                   "extended": best_model_name, "params": best_params},
     }
@@ -227,6 +278,9 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
             use = s.use[c]
             t = s.t[use]
             top.plot(t, s.obs[c][use], ".", ms=2, color="k", alpha=0.5, label="data")
+            if len(t) == 0:  # not fitted (position-only theta): no model curve to show
+                top.text(0.5, 0.5, "not used", transform=top.transAxes, ha="center")
+                continue
             top.plot(s.t, fit0.predictions[j][c], "-", color="C0", lw=1.2,
                      label=f"baseline ({model.baseline})")
             if ext:
@@ -240,8 +294,6 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
                 bot.plot(t, r1, ".", ms=2, color="C3", label=f"+ {ext}")
             bot.axhline(0, color="k", lw=0.6)
             bot.set_ylabel(f"residual {c} ({unit[c]})")
-            if len(t) == 0:
-                top.text(0.5, 0.5, "not used", transform=top.transAxes, ha="center")
             _mark_effect(top, bot, ext, p.get("params", {}), s, fit1.predictions[j], j)
         axes[2 * j, 0].set_title(str(s.name).split("/")[-1], loc="left", fontsize=9)
         axes[2 * j, 0].legend(fontsize=7, loc="best")
@@ -256,13 +308,15 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
 
 
 def _mark_effect(top, bot, ext, params, shot, pred, j):
-    """Shade where the named effect acts: a patch's stretch (in time), a pick's instant."""
-    if ext == "friction_patch":
-        inside = (pred["y"] >= params["y_start_m"]) & (pred["y"] < params["y_end_m"])
-        if inside.any():
-            t_in = shot.t[inside]
-            for ax in (top, bot):
-                ax.axvspan(t_in.min(), t_in.max(), color="C2", alpha=0.12, lw=0)
-    elif ext == "pick" and int(params.get("shot", 0)) == j:
+    """Shade where the named effect acts (its definition's marks: a patch's stretch in
+    time, a pick's instant)."""
+    from ..physics.effects import EFFECTS
+
+    if ext not in EFFECTS:
+        return
+    for mark in EFFECTS[ext].marks(params, j, shot.t, pred):
         for ax in (top, bot):
-            ax.axvline(params["t_s"], color="C2", lw=1, ls=":")
+            if mark[0] == "span":
+                ax.axvspan(mark[1], mark[2], color="C2", alpha=0.12, lw=0)
+            else:
+                ax.axvline(mark[1], color="C2", lw=1, ls=":")

@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import CurltrackError
 from . import scoring
 from .model import FitOut, JointModel
+from .residuals import structure_tests
 from .shots import COORDS
 
 N_TIME_BLOCKS = 5
@@ -65,7 +66,9 @@ class CandidateScore:
     k: int = 0
     nfev: tuple | None = None
     chi2_gain: float | None = None
+    noise: list | None = None
     _refine: tuple | None = None
+    _scan: tuple | None = None
 
 
 def folds_time(model: JointModel, k: int = N_TIME_BLOCKS) -> np.ndarray:
@@ -145,19 +148,9 @@ def effect_columns(base: JointModel, fit0: FitOut, cand, loc: dict) -> np.ndarra
 
 
 def scan_columns(base: JointModel, fit0: FitOut, cand, locs) -> list:
-    """Effect columns at every scan location.
-
-    A patch's columns are built from half-infinite patches: in the linear limit the
-    response to extra friction on [a, b) is that on [a, inf) minus that on [b, inf), so
-    N nodes cost N simulations instead of N^2 / 2.
-    """
-    if cand.name != "friction_patch":
-        return [effect_columns(base, fit0, cand, loc) for loc in locs]
-    far = max(max(loc["y_end_m"] for loc in locs) + 10.0, 100.0)
-    nodes = sorted({loc["y_start_m"] for loc in locs} | {loc["y_end_m"] for loc in locs})
-    half = {a: effect_columns(base, fit0, cand, {"y_start_m": a, "y_end_m": far})
-            for a in nodes}
-    return [half[loc["y_start_m"]] - half[loc["y_end_m"]] for loc in locs]
+    """Effect columns at every scan location (the effect's own shortcut if it has one,
+    e.g. a patch's from half-infinite patches)."""
+    return cand.effect.scan_columns(lambda loc: effect_columns(base, fit0, cand, loc), locs)
 
 
 def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
@@ -183,6 +176,7 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
                                       n_boot=n_boot)
     loc = dict(locs[i_loc])
     score = CandidateScore(cand.name, lin, lin, thr, None, loc, note=cand.note, k=k)
+    score._scan = (sub_cols, ks)  # for the threshold under the candidate's own noise
     if sum(b.shape[1] for b in bases) == 0:
         score.note += "; not identifiable with these shots (degenerate with the baseline)"
         score.delta_bic = score.delta_bic_linear = -np.inf
@@ -218,11 +212,16 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
     return score
 
 
+def _centre(loc: dict) -> float:
+    """Where a scan location sits: the mean of its location values (a patch's midpoint,
+    a pick's time)."""
+    vals = [v for k, v in loc.items() if k != "shot"]
+    return float(np.mean(vals)) if vals else 0.0
+
+
 def _regions(locs, n: int) -> np.ndarray:
-    """Region (0..n-1) of each scan location: equal-count bins of its centre (a patch's
-    midpoint, a pick's time), per shot."""
-    key = np.array([(loc.get("shot", 0), 0.5 * (loc["y_start_m"] + loc["y_end_m"])
-                     if "y_start_m" in loc else loc.get("t_s", 0.0)) for loc in locs])
+    """Region (0..n-1) of each scan location: equal-count bins of its centre, per shot."""
+    key = np.array([(loc.get("shot", 0), _centre(loc)) for loc in locs])
     out = np.zeros(len(locs), int)
     for j in np.unique(key[:, 0]):
         idx = np.flatnonzero(key[:, 0] == j)
@@ -232,24 +231,18 @@ def _regions(locs, n: int) -> np.ndarray:
 
 
 def _close(a: dict, b: dict, tol: float = 1.0) -> bool:
-    """Two scan locations closer than ``tol`` (s or m): the same start for the fit."""
+    """Two scan locations closer than ``tol`` (s or m) in every value: the same start."""
     if a.get("shot") != b.get("shot"):
         return False
-    if "t_s" in a:
-        return abs(a["t_s"] - b["t_s"]) < tol
-    if "y_start_m" in a:
-        return abs(a["y_start_m"] - b["y_start_m"]) < tol and abs(a["y_end_m"] - b["y_end_m"]) < tol
-    return True
+    return all(abs(a[k] - b[k]) < tol for k in a if k != "shot")
 
 
 def _close_tol(locs) -> float:
     """1 s or 1 m, but at most a tenth of the scanned time / stretch (a 2 m shot)."""
-    if not locs or not locs[0]:
+    vals = [v for loc in locs for k, v in loc.items() if k != "shot"]
+    if not vals:
         return 1.0
-    if "t_s" in locs[0]:
-        span = max(loc["t_s"] for loc in locs) - min(loc["t_s"] for loc in locs)
-    else:
-        span = max(loc["y_end_m"] for loc in locs) - min(loc["y_start_m"] for loc in locs)
+    span = max(vals) - min(vals)
     return float(min(1.0, 0.1 * span)) if span > 0 else 1.0
 
 
@@ -267,8 +260,7 @@ def _start_model(base, fit0, cand, E, loc, sub) -> JointModel:
     # size parameters outside the chosen sub-model stay at their null values
     dropped = [p.name for j, p in enumerate(cand.size) if j not in sub]
     m.free = [f for f in m.free if f not in dropped]
-    if cand.name == "pick":
-        m.bounds["t_s"] = (0.0, float(base.shots[loc["shot"]].t.max()))
+    m.bounds.update(cand.effect.location_bounds(loc, base.shots))
     return m
 
 
@@ -323,33 +315,24 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
     score.nfev = getattr(m, "nfev", None)
     score.chi2_gain = float(fit0.chi2 - fit1.chi2)
     score.delta_bic = float(score.chi2_gain - k * np.log(n))
-    score.params = {p.name: fit1.values[p.name] for p in cand.params}
-    score.params_err = {p.name: fit1.err(p.name) for p in cand.params}
-    if cand.name == "friction_patch" and score.params["y_start_m"] > score.params["y_end_m"]:
-        a, b = score.params["y_start_m"], score.params["y_end_m"]
-        score.params["y_start_m"], score.params["y_end_m"] = b, a
-        ea, eb = score.params_err["y_start_m"], score.params_err["y_end_m"]
-        score.params_err["y_start_m"], score.params_err["y_end_m"] = eb, ea
-    if cand.name == "pick":
-        score.params["shot"] = int(loc["shot"])
-    if cand.name == "velocity_dependent_friction":
-        # the contract's phi, alpha: the translational law (rotation's when not sliding)
-        ch = "y" if "phi_y" in score.params else "theta"
-        for key, src in (("phi", f"phi_{ch}"), ("alpha", f"alpha_{ch}"),
-                         ("alpha_y", "alpha_y"), ("alpha_theta", "alpha_theta")):
-            if src in fit1.values:
-                score.params[key] = fit1.values[src]
-                score.params_err[key] = fit1.err(src)
+    score.params, score.params_err = cand.effect.finish(
+        {p.name: fit1.values[p.name] for p in cand.params},
+        {p.name: fit1.err(p.name) for p in cand.params}, fit1.values, fit1.err, loc)
     score.structure_after = structure_tests(segments_of(m, fit1))
+    score._model = m
     return score
 
 
-def segments_of(model: JointModel, fit: FitOut):
-    """Residual segments with covariates (time, model y, model speed) for the tests."""
+def segments_of(model: JointModel, fit: FitOut, noise=None):
+    """Residual segments with covariates (time, model y, model speed) for the tests.
+
+    ``noise`` (one ``(inflation, tau)`` per segment, :func:`residual_noise`) scales the
+    residuals by the noise the AR(1) model left in them."""
     from .residuals import Segment
 
     out = []
-    for j, c, sl in model.segments:
+    noise = noise or [(1.0, 1.0)] * len(model.segments)
+    for (j, c, sl), (infl, tau) in zip(model.segments, noise):
         s = model.shots[j]
         use = s.use[c]
         pred = fit.predictions[j]
@@ -357,5 +340,55 @@ def segments_of(model: JointModel, fit: FitOut):
         vx = np.gradient(pred["x"], t) if t.size > 1 else np.zeros_like(t)
         vy = np.gradient(pred["y"], t) if t.size > 1 else np.zeros_like(t)
         speed = np.hypot(vx, vy)
-        out.append(Segment(j, c, fit.r[sl], t[use], pred["y"][use], speed[use], s.spin))
+        out.append(Segment(j, c, fit.r[sl] / np.sqrt(infl), t[use], pred["y"][use],
+                           speed[use], s.spin, tau=tau))
     return out
+
+
+def residual_noise(model: JointModel, r) -> list:
+    """``(inflation, tau)`` of each segment's whitened residuals ``r``
+    (:func:`.noise.residual_structure`)."""
+    from .noise import residual_structure
+
+    return [residual_structure(r[sl], model.shots[j].t[model.shots[j].use[c]])
+            for j, c, sl in model.segments]
+
+
+def block_lengths(model: JointModel, noise) -> list:
+    """Bootstrap blocks per segment: >= 3 correlation times of the residuals."""
+    return [(sl, max(scoring.BLOCK_FRAMES, int(np.ceil(3 * tau))))
+            for (_, _, sl), (_, tau) in zip(model.segments, noise)]
+
+
+def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
+            n_boot: int = scoring.N_BOOT) -> None:
+    """Judge a refitted candidate under the noise its own residuals show.
+
+    The AR(1) model of second differences misses an instrument's persisting errors and
+    heavy tails.  The candidate's residuals are what is left once it explains what it
+    can: their long-scale variance per segment (``inflation``) is the noise against which
+    its chi-square gain, its look-elsewhere threshold (block bootstrap of the baseline's
+    residuals, blocks >= 3 correlation times) and the structure after it are measured.
+    Under the baseline (no effect) the candidate's residuals carry the instrument's
+    noise and the gain shrinks with it; with a real effect they are noise-like and
+    nothing changes.
+    """
+    if score.fit is None:
+        return
+    noise = residual_noise(base, score.fit.r)
+    score.noise = noise
+    scale = np.empty(fit0.n)
+    for (_, _, sl), (infl, _) in zip(base.segments, noise):
+        scale[sl] = 1.0 / np.sqrt(infl)
+    if np.all(scale == 1.0):
+        return
+    gain = float(np.sum((fit0.r * scale) ** 2) - np.sum((score.fit.r * scale) ** 2))
+    n = fit0.n
+    score.chi2_gain = gain
+    score.delta_bic = float(gain - score.k * np.log(n))
+    sub_cols, ks = score._scan
+    bases = scoring.effect_bases(fit0.J * scale[:, None], [c * scale[:, None] for c in sub_cols])
+    score.threshold = scoring.bootstrap_threshold(bases, fit0.r * scale,
+                                                  block_lengths(base, noise), ks, n, rng,
+                                                  n_boot=n_boot)
+    score.structure_after = structure_tests(segments_of(score._model, score.fit, noise))

@@ -2,7 +2,8 @@
 
 from . import closed_form
 from .dynamics import simulate
-from .effects import EFFECTS, Effect
+from .effects import EFFECTS, Effect, EffectDef, register
 from .shot import ShotModel, Trajectory
 
-__all__ = ["closed_form", "simulate", "Effect", "EFFECTS", "ShotModel", "Trajectory"]
+__all__ = ["closed_form", "simulate", "Effect", "EffectDef", "EFFECTS", "register", "ShotModel",
+           "Trajectory"]

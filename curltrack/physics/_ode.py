@@ -18,7 +18,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .effects import heading_rate, patch_factor, transverse_gain
+from .terms import heading_rate, patch_factor, transverse_gain
 
 RTOL, ATOL = 1e-10, 1e-12
 _V_FLOOR = 1e-12

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from . import closed_form as cf
-from .effects import heading_rate, transverse_gain
+from .terms import heading_rate, transverse_gain
 
 _U_NODES = np.concatenate([np.linspace(1.0, 0.02, 400, endpoint=False),
                            np.geomspace(0.02, 1e-12, 160), [0.0]])

@@ -25,7 +25,8 @@ import math
 import numpy as np
 
 from ..errors import ParameterError
-from .effects import gather, patch_factor
+from .effects import gather
+from .terms import patch_factor
 from .shot import ShotModel, Trajectory
 
 #: Integration horizon (s) when the caller gives no times: a rock still moving after
@@ -58,7 +59,8 @@ def solve(model: ShotModel, effects=(), horizon: float | None = None, method: st
         raise ParameterError(f"unknown method {method!r}; expected auto, ode or closed",
                              where="method")
     if method == "closed" and terms.slope_accel != (0.0, 0.0):
-        raise ParameterError("ice_slope needs method 'ode'", where="method")
+        raise ParameterError("a constant acceleration (ice_slope) needs method 'ode'",
+                             where="method")
     use_ode = method == "ode" or terms.slope_accel != (0.0, 0.0)
     horizon = MAX_DURATION_S if horizon is None else float(horizon)
     segments = (_ode_segments(model, terms, horizon) if use_ode

@@ -1,9 +1,21 @@
-"""Extension terms of the shot model: named, switchable causes with their own parameters.
+"""The effect registry: every extension of the shot model, each defined once.
 
-Each :class:`Effect` is one candidate cause that ``discover`` can add to the baseline and
-that tests hide in simulated data.  Names and parameter names are the contract's
-(``shared/contract.md``); all quantities are in the shot frame (x across, y along the
-direction of travel, SI units).
+An effect is one named, switchable cause with its own parameters.  Its
+:class:`EffectDef` says everything about it that the package uses:
+
+* its parameters, with units, defaults (or required), and the range check of a value;
+* its *terms* in the equations of motion, in the term kinds the solvers know
+  (:mod:`curltrack.physics.terms`: constant acceleration, friction patch, transverse
+  gain, impulse, friction law);
+* how ``discover`` tests it: when it is identifiable from the shots given (else why
+  not), the parameters that set its size (with their null, bounds, finite-difference
+  steps), the locations it scans (a grid), and how fitted values become effects.
+
+``simulate``, the command line's ``--effect/--param``, ``discover``'s candidates and
+REPORT.json iterate over :data:`EFFECTS`; none of them checks a name.  Adding an effect is
+one :func:`register` call with its definition (and its tests).  Names and parameter names
+are the contract's (``shared/contract.md``); all quantities are in the shot frame
+(x across, y along the direction of travel, SI units).
 
 ``velocity_dependent_friction`` (``phi``, ``alpha``; optional ``phi_theta``, ``alpha_theta``)
     Replaces the translational friction law mu = alpha v^phi of the model (the paper's
@@ -23,246 +35,271 @@ direction of travel, SI units).
 ``pick`` (``t_s``, ``dvx_m_per_s`` = 0, ``dvy_m_per_s`` = 0, ``domega_rad_per_s`` = 0)
     An impulsive change of velocity and spin at time t_s (debris under the running band).
     It is applied whatever the state (a pick after the stop sets a resting rock moving).
+
+What a definition is made of (:class:`~.registry.Param`, :class:`~.registry.EffectDef`,
+:class:`~.registry.Candidate`) and the hooks' arguments are in :mod:`.registry`.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
-from typing import Mapping, NamedTuple
+import itertools
 
 import numpy as np
 
-from ..errors import ParameterError
-from ..rig import G
+from .registry import (EFFECTS, REQUIRED, Candidate, Effect, EffectDef, Param,
+                       as_effects, at_a_time_in_one_shot, curling, effect_parameters,
+                       gather, register, spin_directions, theta_measured, time_grid,
+                       translating, unregister)
+from .terms import slope_acceleration
 
-_REQUIRED = object()
-
-#: name -> {parameter: default (or required)}
-EFFECTS: dict[str, dict[str, object]] = {
-    "velocity_dependent_friction": {"phi": _REQUIRED, "alpha": _REQUIRED,
-                                    "phi_theta": None, "alpha_theta": None},
-    "ice_slope": {"slope_x_mm_per_m": 0.0, "slope_y_mm_per_m": 0.0},
-    "friction_patch": {"y_start_m": _REQUIRED, "y_end_m": _REQUIRED, "factor": _REQUIRED},
-    "late_curl": {"k": _REQUIRED, "v_ref_m_per_s": 1.0, "v_min_m_per_s": 0.05},
-    "pick": {"t_s": _REQUIRED, "dvx_m_per_s": 0.0, "dvy_m_per_s": 0.0,
-             "domega_rad_per_s": 0.0},
-}
+__all__ = ["EFFECTS", "Effect", "EffectDef", "Param", "Candidate", "register", "unregister",
+           "effect_parameters", "as_effects", "gather", "MAX_SLOPE_MM_PER_M"]
 
 #: |slope| above this (mm/m, i.e. 10 %) is taken for a unit mistake.
 MAX_SLOPE_MM_PER_M = 100.0
 
 
-def effect_parameters(name: str) -> dict[str, object]:
-    """Parameters of effect ``name`` with their defaults (``"required"`` when none)."""
-    if name not in EFFECTS:
-        raise ParameterError(f"unknown effect {name!r}; expected one of {sorted(EFFECTS)}",
-                             where="effect")
-    return {k: ("required" if v is _REQUIRED else v) for k, v in EFFECTS[name].items()}
+# ---------------------------------------------------------------------------------------
+# velocity_dependent_friction
+
+def _vdf_check(p):
+    for phi_key, alpha_key in (("phi", "alpha"), ("phi_theta", "alpha_theta")):
+        if p[phi_key] is not None and p[phi_key] >= 1.0:
+            return f"{phi_key} must be < 1 (got {p[phi_key]}); mu = alpha u^phi"
+        if p[alpha_key] is not None and p[alpha_key] <= 0.0:
+            return f"{alpha_key} must be > 0 (got {p[alpha_key]})"
+    return None
 
 
-@dataclass(frozen=True)
-class Effect:
-    """One extension term: a contract effect name and its parameters.
-
-    Parameters
-    ----------
-    name : str
-        One of :data:`EFFECTS` (``ice_slope``, ``friction_patch``, ``late_curl``, ``pick``,
-        ``velocity_dependent_friction``).
-    params : mapping of str to float
-        The effect's parameters (units in their names; see the module docstring).
-        Missing optional ones take their defaults.
-
-    Raises
-    ------
-    ParameterError
-        Unknown name or parameter, missing required parameter, non-finite or
-        out-of-range value.
-
-    Examples
-    --------
-    >>> Effect("ice_slope", {"slope_x_mm_per_m": 1.0}).params["slope_y_mm_per_m"]
-    0.0
-    """
-
-    name: str
-    params: Mapping[str, float] = field(default_factory=dict, hash=False)
-
-    def __post_init__(self):
-        spec = effect_parameters(self.name)
-        where = f"effect {self.name}"
-        unknown = sorted(set(self.params) - set(spec))
-        if unknown:
-            raise ParameterError(f"unknown parameter(s) {unknown}; expected some of "
-                                 f"{sorted(spec)}", where=where)
-        clean: dict[str, float | None] = {}
-        for key, default in spec.items():
-            if key not in self.params or self.params[key] is None:
-                if default == "required":
-                    raise ParameterError(f"missing required parameter {key!r}", where=where)
-                clean[key] = default
-                continue
-            value = self.params[key]
-            try:
-                value = float(value)
-            except (TypeError, ValueError):
-                raise ParameterError(f"{key}: expected a number, got {value!r}",
-                                     where=where) from None
-            if not math.isfinite(value):
-                raise ParameterError(f"{key}: expected a finite number, got {value!r}",
-                                     where=where)
-            clean[key] = value
-        _check_ranges(self.name, clean, where)
-        object.__setattr__(self, "params", clean)
-
-    def to_dict(self) -> dict:
-        """JSON-ready ``{"effect": name, "params": {...}}``."""
-        return {"effect": self.name, "params": dict(self.params)}
+def _vdf_terms(p):
+    law = {"phi_y": p["phi"], "alpha_y": p["alpha"]}
+    if p["phi_theta"] is not None:
+        law["phi_theta"] = p["phi_theta"]
+    if p["alpha_theta"] is not None:
+        law["alpha_theta"] = p["alpha_theta"]
+    return {"friction_law": law}
 
 
-def _check_ranges(name: str, p: dict, where: str) -> None:
-    def bad(msg):
-        raise ParameterError(msg, where=where)
+def _vdf_candidate(shots, baseline):
+    rel = []
+    if translating(shots):
+        rel.append("phi_y")
+    if any(s.spins for s in shots):
+        rel.append("phi_theta")
+    return Candidate("velocity_dependent_friction",
+                     [Param(n, null=0.0, lower=-3.0, upper=0.9) for n in rel], releases=rel,
+                     note="friction law mu = alpha v^phi against dry friction (phi = 0), "
+                          "per channel")
 
-    if name == "velocity_dependent_friction":
-        for phi_key, alpha_key in (("phi", "alpha"), ("phi_theta", "alpha_theta")):
-            if p[phi_key] is not None and p[phi_key] >= 1.0:
-                bad(f"{phi_key} must be < 1 (got {p[phi_key]}); mu = alpha u^phi")
-            if p[alpha_key] is not None and p[alpha_key] <= 0.0:
-                bad(f"{alpha_key} must be > 0 (got {p[alpha_key]})")
-    elif name == "ice_slope":
-        for key in ("slope_x_mm_per_m", "slope_y_mm_per_m"):
-            if abs(p[key]) > MAX_SLOPE_MM_PER_M:
-                bad(f"{key} = {p[key]} mm/m is steeper than {MAX_SLOPE_MM_PER_M} mm/m "
+
+def _vdf_finish(params, errs, values, err, loc):
+    # the contract's phi, alpha: the translational law (rotation's when not sliding)
+    ch = "y" if "phi_y" in params else "theta"
+    for key, src in (("phi", f"phi_{ch}"), ("alpha", f"alpha_{ch}"),
+                     ("alpha_y", "alpha_y"), ("alpha_theta", "alpha_theta")):
+        if src in values:
+            params[key] = values[src]
+            errs[key] = err(src)
+    return params, errs
+
+
+register(EffectDef(
+    "velocity_dependent_friction",
+    (Param("phi", REQUIRED), Param("alpha", REQUIRED, "(m/s)^-phi"),
+     Param("phi_theta", None), Param("alpha_theta", None, "(m/s)^-phi_theta")),
+    terms=_vdf_terms, check=_vdf_check, once=True,
+    unidentifiable=lambda shots, baseline: (
+        None if baseline == "dry" else
+        "part of the paper baseline (phi free); tested against --baseline dry"),
+    candidate=_vdf_candidate, finish=_vdf_finish))
+
+
+# ---------------------------------------------------------------------------------------
+# ice_slope
+
+_SLOPE_KEYS = ("slope_x_mm_per_m", "slope_y_mm_per_m")
+
+
+def _slope_check(p):
+    for key in _SLOPE_KEYS:
+        if abs(p[key]) > MAX_SLOPE_MM_PER_M:
+            return (f"{key} = {p[key]} mm/m is steeper than {MAX_SLOPE_MM_PER_M} mm/m "
                     f"(slopes are in mm per m)")
-    elif name == "friction_patch":
-        if p["factor"] <= 0.0:
-            bad(f"factor must be > 0 (got {p['factor']})")
-        if p["y_end_m"] < p["y_start_m"]:   # equal: an empty patch (no effect), fine in fits
-            bad(f"y_end_m ({p['y_end_m']}) must not be less than y_start_m ({p['y_start_m']})")
-    elif name == "late_curl":
-        for key in ("v_ref_m_per_s", "v_min_m_per_s"):
-            if p[key] <= 0.0:
-                bad(f"{key} must be > 0 (got {p[key]})")
-        if abs(p["k"]) > 5.0:
-            bad(f"k = {p['k']} is outside [-5, 5]")
-    elif name == "pick":
-        if p["t_s"] < 0.0:
-            bad(f"t_s must be >= 0 (got {p['t_s']})")
+    return None
 
 
-def as_effects(effects) -> tuple[Effect, ...]:
-    """Accept Effect objects, ``(name, params)`` pairs or ``{"effect":..., "params":...}``."""
-    out = []
-    for e in effects or ():
-        if isinstance(e, Effect):
-            out.append(e)
-        elif isinstance(e, Mapping):
-            out.append(Effect(e.get("effect", e.get("name")), e.get("params", {})))
-        else:
-            name, params = e
-            out.append(Effect(name, params))
-    return tuple(out)
+def _slope_unidentifiable(shots, baseline):
+    if not translating(shots):
+        return "the rock does not slide"
+    if len(spin_directions(shots)) < 2 and not all(
+            getattr(s, "theta_measured", True) for s in translating(shots)):
+        return ("needs shots of both spin directions with the rotation measured "
+                "(position-only shots: the spin's side is read off the curl, which a "
+                "lateral slope moves)")
+    if len(spin_directions(shots)) < 2:
+        return ("needs shots of both spin directions in a common frame: with one spin "
+                "direction a lateral slope is degenerate with the curl a_T, and a slope "
+                "along the sheet with the friction law (alpha, phi) up to a late lateral "
+                "term indistinguishable from late_curl")
+    return None
 
 
-class Terms(NamedTuple):
-    """Effects gathered for the equations of motion (see :func:`gather`)."""
-
-    slope_accel: tuple[float, float]        # (a_x, a_y) in m/s^2
-    patches: tuple[tuple[float, float, float], ...]   # (y_start, y_end, factor)
-    late_curl: tuple[float, float, float] | None   # (k, v_ref, v_min)
-    picks: tuple[tuple[float, float, float, float], ...]  # (t, dvx, dvy, domega), sorted
-    overrides: dict                         # ShotModel field -> value
-
-    @property
-    def needs_ode(self) -> bool:
-        """Slope and patch couple speed, heading and position: no closed form."""
-        return self.slope_accel != (0.0, 0.0) or bool(self.patches)
+def _slope_effects(values, shot_index, shots):
+    """The slope in a shot's frame from its components in the first shot's frame."""
+    sx, sy = values.get("slope_x_mm_per_m", 0.0), values.get("slope_y_mm_per_m", 0.0)
+    d = shots[shot_index].heading_rad - shots[0].heading_rad
+    c, s = np.cos(d), np.sin(d)
+    return (Effect("ice_slope", {"slope_x_mm_per_m": float(sx * c + sy * s),
+                                 "slope_y_mm_per_m": float(-sx * s + sy * c)}),)
 
 
-def slope_acceleration(slope_mm_per_m: float, g: float = G) -> float:
-    """Downhill acceleration (m/s^2) along an axis that rises ``slope`` mm per m."""
-    return -g * math.sin(math.atan(slope_mm_per_m * 1e-3))
+register(EffectDef(
+    "ice_slope",
+    (Param("slope_x_mm_per_m", 0.0, "mm/m", lower=-60.0, upper=60.0, step=1e-3),
+     Param("slope_y_mm_per_m", 0.0, "mm/m", lower=-60.0, upper=60.0, step=1e-3)),
+    terms=lambda p: {"accel": (slope_acceleration(p["slope_x_mm_per_m"]),
+                               slope_acceleration(p["slope_y_mm_per_m"]))},
+    check=_slope_check, unidentifiable=_slope_unidentifiable,
+    candidate=lambda shots, baseline: Candidate(
+        "ice_slope", list(EFFECTS["ice_slope"].params),
+        note="shots of both spin directions: a lateral slope (the same for both) is told "
+             "from the curl (opposite for them)"),
+    to_effects=_slope_effects))
 
 
-def gather(effects) -> Terms:
-    """Collect effects into the terms the equations of motion use.
+# ---------------------------------------------------------------------------------------
+# friction_patch
 
-    Slopes add; patches multiply where they overlap; picks are applied in time order;
-    ``late_curl`` and ``velocity_dependent_friction`` may each appear once.
-    """
-    effects = as_effects(effects)
-    ax = ay = 0.0
-    patches, picks, overrides, late = [], [], {}, None
-    seen = set()
-    for e in effects:
-        p = e.params
-        if e.name in ("late_curl", "velocity_dependent_friction"):
-            if e.name in seen:
-                raise ParameterError("may be given only once", where=f"effect {e.name}")
-            seen.add(e.name)
-        if e.name == "ice_slope":
-            ax += slope_acceleration(p["slope_x_mm_per_m"])
-            ay += slope_acceleration(p["slope_y_mm_per_m"])
-        elif e.name == "friction_patch":
-            patches.append((p["y_start_m"], p["y_end_m"], p["factor"]))
-        elif e.name == "late_curl":
-            late = (p["k"], p["v_ref_m_per_s"], p["v_min_m_per_s"])
-        elif e.name == "pick":
-            picks.append((p["t_s"], p["dvx_m_per_s"], p["dvy_m_per_s"], p["domega_rad_per_s"]))
-        elif e.name == "velocity_dependent_friction":
-            overrides.update(phi_y=p["phi"], alpha_y=p["alpha"])
-            if p["phi_theta"] is not None:
-                overrides["phi_theta"] = p["phi_theta"]
-            if p["alpha_theta"] is not None:
-                overrides["alpha_theta"] = p["alpha_theta"]
-    picks.sort(key=lambda q: q[0])
-    return Terms((ax, ay), tuple(patches), late, tuple(picks), overrides)
+def _patch_check(p):
+    if p["factor"] <= 0.0:
+        return f"factor must be > 0 (got {p['factor']})"
+    if p["y_end_m"] < p["y_start_m"]:   # equal: an empty patch (no effect), fine in fits
+        return f"y_end_m ({p['y_end_m']}) must not be less than y_start_m ({p['y_start_m']})"
+    return None
 
 
-def patch_factor(y, patches) -> np.ndarray | float:
-    """Friction multiplier at position(s) ``y`` (m): product of the patches covering y."""
-    f = np.ones_like(np.asarray(y, dtype=float))
-    for y0, y1, factor in patches:
-        f = np.where((y >= y0) & (y < y1), f * factor, f)
-    return f if f.ndim else float(f)
+def _patch_unidentifiable(shots, baseline):
+    if not translating(shots):
+        return "the rock does not slide"
+    if max(s.y_max_m for s in translating(shots)) <= 1.0:
+        return "the rock slides 1 m or less: too short a stretch to place a patch on"
+    return None
 
 
-def transverse_gain(v, late_curl):
-    """Multiplier of a_T at speed ``v`` (m/s), before the low-speed taper.
-
-    1 without ``late_curl``; with it ((v^2 + v_min^2) / v_ref^2)^(-k/2), i.e.
-    (v/v_ref)^(-k) for v >> v_min, bounded by (v_min/v_ref)^(-k) as v -> 0.
-    """
-    if late_curl is None:
-        return np.ones_like(v) if isinstance(v, np.ndarray) else 1.0
-    k, v_ref, v_min = late_curl
-    return ((v * v * 1.0 + v_min * v_min) / (v_ref * v_ref)) ** (-0.5 * k)
-
-
-def taper(v, v_c: float):
-    """h(v) = 1 - exp(-(v/v_c)^2): 1 to within 1e-4 for v > 3 v_c, -> (v/v_c)^2 at v -> 0."""
-    if isinstance(v, float):  # the ODE's right-hand side: keep scalar calls cheap
-        return -math.expm1(-(v / v_c) ** 2)
-    z = np.asarray(v, dtype=float) / v_c
-    h = -np.expm1(-z * z)
-    return h if h.ndim else float(h)
+def _patch_candidate(shots, baseline):
+    y_max = max(s.y_max_m for s in translating(shots))
+    # edges every ~0.4 m (at least 21 nodes): in the linear limit a patch's columns come
+    # from one simulation per node (see _patch_columns)
+    nodes = np.linspace(0.0, y_max, max(21, int(np.ceil(y_max / 0.4)) + 1))
+    grid = [{"y_start_m": float(a), "y_end_m": float(b)}
+            for i, a in enumerate(nodes) for b in nodes[i + 1:] if b - a <= 0.75 * y_max]
+    edge = dict(null=0.0, lower=-1.0, upper=y_max + 1.0, unit="m", step=1e-3)
+    return Candidate(
+        "friction_patch", [Param("factor", null=1.0, lower=0.05, upper=20.0, step=1e-4)],
+        location=[Param("y_start_m", **edge), Param("y_end_m", **edge)],
+        grid=grid, note="a stretch of the sheet (along y) where alpha is multiplied by "
+                        "factor; extent scanned on a grid, then refined")
 
 
-def heading_rate(a_perp, v, v_c: float):
-    """Rate of turn of the velocity (rad/s) for a transverse acceleration ``a_perp``.
+def _patch_columns(columns_at, locs):
+    """In the linear limit the response to extra friction on [a, b) is that on [a, inf)
+    minus that on [b, inf), so N nodes cost N simulations instead of N^2 / 2."""
+    far = max(max(loc["y_end_m"] for loc in locs) + 10.0, 100.0)
+    nodes = sorted({loc["y_start_m"] for loc in locs} | {loc["y_end_m"] for loc in locs})
+    half = {a: columns_at({"y_start_m": a, "y_end_m": far}) for a in nodes}
+    return [half[loc["y_start_m"]] - half[loc["y_end_m"]] for loc in locs]
 
-    Every transverse acceleration is tapered by h(v) = 1 - exp(-(v/v_c)^2) (see
-    :func:`taper`), so it vanishes with the speed and the direction of a vanishing velocity
-    is held instead of swinging round; the turn rate a_perp h(v) / v -> a_perp v / v_c^2
-    stays finite at every v and is exactly a_perp / v above a few v_c.  Without the taper
-    the heading integral of a_T / v diverges at the stop for lambda_y >= 2 (dry friction
-    included); with v_c = 1 cm/s it changes a draw's curl by ~1e-5 relative.
-    """
-    if isinstance(v, float):
-        return a_perp * -math.expm1(-(v / v_c) ** 2) / v if v > 0 else 0.0
-    v = np.asarray(v, dtype=float)
-    safe = np.where(v > 0, v, 1.0)
-    rate = np.where(v > 0, a_perp * taper(safe, v_c) / safe, 0.0)
-    return rate if rate.ndim else float(rate)
+
+def _patch_effects(values, shot_index, shots):
+    a, b = sorted((values["y_start_m"], values["y_end_m"]))
+    return (Effect("friction_patch", {"y_start_m": float(a), "y_end_m": float(b),
+                                      "factor": float(values["factor"])}),)
+
+
+def _patch_finish(params, errs, values, err, loc):
+    if params["y_start_m"] > params["y_end_m"]:
+        params["y_start_m"], params["y_end_m"] = params["y_end_m"], params["y_start_m"]
+        errs["y_start_m"], errs["y_end_m"] = errs["y_end_m"], errs["y_start_m"]
+    return params, errs
+
+
+def _patch_marks(params, j, t, pred):
+    inside = (pred["y"] >= params["y_start_m"]) & (pred["y"] < params["y_end_m"])
+    return [("span", t[inside].min(), t[inside].max())] if inside.any() else []
+
+
+register(EffectDef(
+    "friction_patch",
+    (Param("y_start_m", REQUIRED, "m"), Param("y_end_m", REQUIRED, "m"),
+     Param("factor", REQUIRED)),
+    terms=lambda p: {"patch": (p["y_start_m"], p["y_end_m"], p["factor"])},
+    check=_patch_check, unidentifiable=_patch_unidentifiable, candidate=_patch_candidate,
+    to_effects=_patch_effects, scan_columns=_patch_columns, finish=_patch_finish,
+    marks=_patch_marks))
+
+
+# ---------------------------------------------------------------------------------------
+# late_curl
+
+def _late_check(p):
+    for key in ("v_ref_m_per_s", "v_min_m_per_s"):
+        if p[key] <= 0.0:
+            return f"{key} must be > 0 (got {p[key]})"
+    if abs(p["k"]) > 5.0:
+        return f"k = {p['k']} is outside [-5, 5]"
+    return None
+
+
+def _late_unidentifiable(shots, baseline):
+    if not translating(shots):
+        return "the rock does not slide"
+    if not curling(shots):
+        return "the rock does not spin while it slides (a_T acts only on a spinning rock)"
+    return None
+
+
+register(EffectDef(
+    "late_curl",
+    (Param("k", REQUIRED, null=0.0, lower=-3.0, upper=3.0, step=1e-4),
+     Param("v_ref_m_per_s", 1.0, "m/s"), Param("v_min_m_per_s", 0.05, "m/s")),
+    terms=lambda p: {"transverse_gain": (p["k"], p["v_ref_m_per_s"], p["v_min_m_per_s"])},
+    check=_late_check, once=True, unidentifiable=_late_unidentifiable,
+    candidate=lambda shots, baseline: Candidate(
+        "late_curl", [EFFECTS["late_curl"].params[0]], note="a_T (v / 1 m/s)^(-k)"),
+    to_effects=lambda values, i, shots: (
+        Effect("late_curl", {"k": float(values["k"]), "v_ref_m_per_s": 1.0}),)))
+
+
+# ---------------------------------------------------------------------------------------
+# pick
+
+_PICK_KEYS = ("t_s", "dvx_m_per_s", "dvy_m_per_s", "domega_rad_per_s")
+
+
+def _pick_candidate(shots, baseline):
+    size = [Param("dvx_m_per_s", null=0.0, lower=-2.0, upper=2.0, unit="m/s", step=1e-5),
+            Param("dvy_m_per_s", null=0.0, lower=-2.0, upper=2.0, unit="m/s", step=1e-5),
+            Param("domega_rad_per_s", null=0.0, lower=-10.0, upper=10.0, unit="rad/s",
+                  step=1e-4)]
+    if not translating(shots):
+        size = size[2:]
+    elif not theta_measured(shots):
+        size = size[:2]  # position-only: a spin impulse is never invented
+    subsets = [c for r in range(1, len(size) + 1)
+               for c in itertools.combinations(range(len(size)), r)]
+    return Candidate("pick", size, location=[Param("t_s", null=0.0, lower=0.0, upper=1e9,
+                                                   unit="s", step=1e-3)],
+                     grid=time_grid(shots), subsets=subsets,
+                     note="an impulsive change of velocity and/or spin at t_s (time "
+                          "scanned on a grid, then refined; the components kept are "
+                          "chosen by delta-BIC)")
+
+
+register(EffectDef(
+    "pick",
+    (Param("t_s", REQUIRED, "s"), Param("dvx_m_per_s", 0.0, "m/s"),
+     Param("dvy_m_per_s", 0.0, "m/s"), Param("domega_rad_per_s", 0.0, "rad/s")),
+    terms=lambda p: {"impulse": (p["t_s"], p["dvx_m_per_s"], p["dvy_m_per_s"],
+                                 p["domega_rad_per_s"])},
+    check=lambda p: f"t_s must be >= 0 (got {p['t_s']})" if p["t_s"] < 0.0 else None,
+    candidate=_pick_candidate, **at_a_time_in_one_shot("pick", _PICK_KEYS)))
