@@ -141,8 +141,24 @@ def dropping_writer(monkeypatch):
     monkeypatch.setattr(cv2, "VideoWriter", _DroppingWriter)
 
 
+@pytest.fixture
+def dropping_encoder(monkeypatch):
+    """The overlay's H.264 encoder losing every frame after the 10th (a full disk) while
+    reporting them all written."""
+    import curltrack.track.overlay as ov
+
+    real = ov._encode
+
+    def dropping(tmp, frames, fps, size, progress=None):
+        frames = list(frames)
+        real(tmp, frames[:10], fps, size)
+        return len(frames)
+
+    monkeypatch.setattr(ov, "_encode", dropping)
+
+
 def test_truncated_overlay_never_replaces_a_good_one(cli, tmp_path, rig_file, good_clip,
-                                                     dropping_writer):
+                                                     dropping_encoder):
     ov = tmp_path / "ov.mp4"
     ov.write_bytes(b"a good overlay\n")
     out = tmp_path / "s.csv"
