@@ -35,9 +35,22 @@ def test_render_from_initial_conditions_shows_the_rock_at_rest(tmp_path):
                               "--width", "96", "--height", "64", "--blur-subframes", "1"],
                        capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
+    assert p.stderr == "", p.stderr  # no progress output when stderr is not a terminal
     truth = pd.read_csv(tmp_path / "t.csv")
     import json
 
     meta = json.loads((tmp_path / "t.json").read_text())
     rest = truth["t"].iloc[-1] - max(meta["t_stop_translation"], meta["t_stop_rotation"])
     assert rest > 0.9, f"v0 {v0:.3f}: the video ends {rest:.3f} s after the stop"
+
+
+def test_progress_bar_runs_on_a_terminal_and_is_silent_otherwise(capsys):
+    from curltrack.progress import progress_bar
+
+    with progress_bar("x", 3) as advance:  # pytest's stderr is not a terminal
+        for _ in range(3):
+            advance()
+    assert capsys.readouterr().err == ""
+    with progress_bar("x", 3, enabled=True) as advance:
+        for _ in range(3):
+            advance()

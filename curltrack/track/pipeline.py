@@ -394,8 +394,11 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     if overlay_path is not None:
         from .overlay import write_overlay
 
-        write_overlay(video_path, overlay_path, records, series, loop_info, rig,
-                      start=start, end=end, exclude=exclude)
+        from ..progress import progress_bar
+
+        with progress_bar("overlay", total, enabled=progress) as advance:
+            write_overlay(video_path, overlay_path, records, series, loop_info, rig,
+                          start=start, end=end, exclude=exclude, progress=advance)
     return series
 
 
