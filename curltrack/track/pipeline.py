@@ -284,7 +284,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
 
 def track_video(video_path, rig: Rig, start_frame: int | None = None,
                 end_frame: int | None = None, exclude_frames=(), overlay_path=None,
-                progress: bool = False):
+                progress: bool = False, debug_frames=(), debug_dir=None):
     """Track a shot video: x(t), y(t), theta(t) in the shot frame, with stop times.
 
     Parameters
@@ -303,6 +303,8 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         Write an annotated video there (second pass over the video).
     progress : bool
         Show a progress bar (rich) on stderr.
+    debug_frames, debug_dir : iterable of int, path, optional
+        Write a PNG of what was found on each of these frames into ``debug_dir``.
 
     Notes
     -----
@@ -399,6 +401,11 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         with progress_bar("overlay", total, enabled=progress) as advance:
             write_overlay(video_path, overlay_path, records, series, loop_info, rig,
                           start=start, end=end, exclude=exclude, progress=advance)
+    if debug_dir is not None and len(debug_frames):
+        from .overlay import write_debug_frames
+
+        write_debug_frames(video_path, debug_dir, debug_frames, records, series,
+                           loop_info["calib"], rig)
     return series
 
 
