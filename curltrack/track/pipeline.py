@@ -351,7 +351,6 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     frames = iter_frames(video_path, start=start, end=end, exclude=exclude,
                          fps_override=rig.fps)
     total = end - start - len(exclude)
-    bar = _progress_bar(total, str(video_path)) if progress else None
     import cv2
 
     # OpenCV's own threads (and the decoder's, in curltrack.video) = CURLTRACK_THREADS,
@@ -365,15 +364,16 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     n_threads = decoder_threads()
     if n_threads > 0:
         cv2.setNumThreads(n_threads)
+    from ..progress import progress_bar
+
     try:
-        with threadpool_limits(limits=max(n_threads, 1), user_api="blas"):
+        with threadpool_limits(limits=max(n_threads, 1), user_api="blas"), \
+                progress_bar("tracking", total, enabled=progress) as advance:
             records, loop_info = track_frames(frames, rig, path=video_path,
-                                              progress=bar[1] if bar else None,
+                                              progress=advance if progress else None,
                                               outline_every=max(2, total // OUTLINE_FRAMES))
     finally:
         cv2.setNumThreads(threads_before)
-        if bar:
-            bar[0].stop()
     blank = _blank_lead(records) if start_frame is None else 0
     if blank:  # black / empty frames before the scene: t = 0 at the first real frame
         records, start = records[blank:], records[blank].frame
@@ -395,8 +395,6 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
                                        f"frame {start} (give --start-frame to choose)")
     if overlay_path is not None:
         from .overlay import write_overlay
-
-        from ..progress import progress_bar
 
         with progress_bar("overlay", total, enabled=progress) as advance:
             write_overlay(video_path, overlay_path, records, series, loop_info, rig,
@@ -433,16 +431,3 @@ def _time_interpolator(records, start, dt):
         return float(np.interp(i, frames, times))
 
     return t_of
-
-
-def _progress_bar(total: int, name: str):
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                               TimeRemainingColumn)
-
-    from rich.console import Console
-
-    prog = Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(),
-                    TimeRemainingColumn(), transient=True, console=Console(stderr=True))
-    task = prog.add_task(name, total=total)
-    prog.start()
-    return prog, (lambda n: prog.advance(task, n))
