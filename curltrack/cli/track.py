@@ -57,6 +57,9 @@ def track(
     debug_dir: Path = typer.Option(None, "--debug-dir",
                                    help="Folder for PNGs of what was found on --frames "
                                    "(threads, markers, centre, trail, numbers)."),
+    corrections: Path = typer.Option(None, "--corrections",
+                                     help="JSON of clicked marker positions (px) and "
+                                     "excluded frames, e.g. downloaded from `review`."),
     no_progress: bool = typer.Option(False, "--no-progress", help="No progress bar."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
 ):
@@ -73,7 +76,7 @@ def track(
     from ..series import sidecar_path, write_series
     from ..track import track_video
 
-    check_outputs([video, rig], [("-o", output), ("-o (its sidecar)", sidecar_path(output)),
+    check_outputs([video, rig, corrections], [("-o", output), ("-o (its sidecar)", sidecar_path(output)),
                                  ("--overlay", overlay)])
     r = load_rig(rig)
     excl = parse_frame_list(exclude_frames)
@@ -85,7 +88,7 @@ def track(
     series = track_video(video, r, start_frame=start_frame, end_frame=end_frame,
                          exclude_frames=excl, overlay_path=overlay,
                          progress=not no_progress and sys.stderr.isatty(),
-                         debug_frames=debug, debug_dir=debug_dir)
+                         debug_frames=debug, debug_dir=debug_dir, corrections=corrections)
     series.meta["rig"] = str(rig)
     if overlay is not None:
         series.meta["overlay"] = str(overlay)  # `curltrack review` embeds it

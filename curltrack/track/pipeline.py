@@ -284,7 +284,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
 
 def track_video(video_path, rig: Rig, start_frame: int | None = None,
                 end_frame: int | None = None, exclude_frames=(), overlay_path=None,
-                progress: bool = False, debug_frames=(), debug_dir=None):
+                progress: bool = False, debug_frames=(), debug_dir=None, corrections=None):
     """Track a shot video: x(t), y(t), theta(t) in the shot frame, with stop times.
 
     Parameters
@@ -305,6 +305,9 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         Show a progress bar (rich) on stderr.
     debug_frames, debug_dir : iterable of int, path, optional
         Write a PNG of what was found on each of these frames into ``debug_dir``.
+    corrections : path, optional
+        A corrections file (:mod:`curltrack.track.corrections`): frames measured from
+        clicked marker positions, frames excluded; recorded in the sidecar.
 
     Notes
     -----
@@ -334,6 +337,11 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     from .results import build_series
 
     info = probe_video(video_path, fps_override=rig.fps)
+    corr = None
+    if corrections is not None:  # read first: a bad file fails before the long pass
+        from .corrections import read_corrections
+
+        corr = read_corrections(corrections, len(rig.markers))
     start = int(start_frame or 0)
     end = info.n_frames if end_frame is None else int(end_frame) + 1
     if not 0 <= start < info.n_frames:
@@ -388,7 +396,18 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     for i in exclude:
         by_frame[i] = FrameRecord(i, t_of(i), status="excluded by the user")
     records = [by_frame[i] for i in sorted(by_frame)]
+    corr_warnings = []
+    if corr is not None:
+        from .corrections import apply_corrections
+
+        corr_warnings = apply_corrections(records, corr, loop_info["calib"], rig)
     series = build_series(records, rig, info, start, loop_info, path=video_path)
+    if corr is not None:
+        series.meta["corrections"] = {
+            "file": corr["file"], "click_sigma_px": corr["click_sigma_px"],
+            "frames_from_clicks": sorted(corr["clicked"]),
+            "frames_excluded": sorted(corr["excluded"])}
+        series.meta["warnings"].extend(corr_warnings)
     if blank:
         series.meta["warnings"].insert(0, f"frames {start - blank}-{start - 1} show neither "
                                        f"rock nor grid (black or empty): skipped; t = 0 at "
