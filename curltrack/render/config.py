@@ -8,8 +8,10 @@ import numpy as np
 
 from ..errors import ParameterError, RigError
 from ..rig import parse_color
+from .encode import EncodingConfig
 from .motion import CameraConfig
 from .ice import IceStyle
+from .sensor import SensorConfig
 
 
 @dataclass(frozen=True)
@@ -73,6 +75,11 @@ class RenderConfig:
         Ice, pebble and thread look.
     texture_oversample : float
         Ice texture resolution relative to the image's px/m, default 1.3.
+    sensor : SensorConfig
+        Interlaced fields, rolling shutter, chroma subsampling, frame timing, auto
+        exposure and white balance (default: none of them).
+    encoding : EncodingConfig
+        Codec, bitrate, rotation tag (default: OpenCV's mp4v).
     """
 
     width: int = 960
@@ -100,6 +107,8 @@ class RenderConfig:
     marker_diameter_m: float = 0.025
     ice: IceStyle = field(default_factory=IceStyle)
     texture_oversample: float = 1.3
+    sensor: SensorConfig = field(default_factory=SensorConfig)
+    encoding: EncodingConfig = field(default_factory=EncodingConfig)
 
     def validate(self) -> None:
         """Raise ParameterError naming the first bad field."""
@@ -134,6 +143,11 @@ class RenderConfig:
             bad("lamp_height_m", "lamp_height_m must be 1..50 m, glare_spread_rad 0.01..1")
         if self.occlusion_speed_m_s <= 0:
             bad("occlusion_speed_m_s", "must be > 0")
+        self.encoding.validate()
+        sen = self.sensor
+        if self.encoding.codec == "mp4v" and (sen.frame_jitter_s > 0 or sen.drop_rate > 0):
+            bad("encoding", "irregular frame times need a PyAV codec (mpeg4, h264, hevc), "
+                "not OpenCV's mp4v")
         try:
             parse_color(self.ice.ice_color, where="render.ice.ice_color")
         except RigError as exc:

@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..errors import ParameterError
-from .camera import Camera, base_rotation, rotation_matrix
+from .camera import LENSES, Camera, base_rotation, rotation_matrix
 
 MOTIONS = ("ladder", "handheld", "static")
 
@@ -54,7 +54,13 @@ class CameraConfig:
     yaw_offset_max_deg : float
         Bound of the random yaw offset when ``yaw_deg`` is None (deg), default 3.
     k1, k2 : float
-        Radial distortion (r^2 and r^4 terms); default -0.08 (moderate barrel) and 0.
+        Lens distortion (r^2 and r^4 terms; for the fisheye, of the angle off the axis,
+        see :class:`~.camera.Camera`); default -0.08 (moderate barrel) and 0.  Action
+        cameras: k1 down to about -0.35 with k2 > 0.
+    lens : {"radial", "fisheye"}
+        Brown's radial polynomial (default) or the equidistant fisheye.
+    pixel_aspect : float
+        Pixel width / height, default 1; NTSC DV 10/11 (fx = f / pixel_aspect).
     principal_offset_px : (float, float), optional
         Principal point minus the image centre (px); default: random, up to 2.5 % of
         the image size, from the seed.
@@ -82,6 +88,8 @@ class CameraConfig:
     yaw_offset_max_deg: float = 3.0
     k1: float = -0.08
     k2: float = 0.0
+    lens: str = "radial"
+    pixel_aspect: float = 1.0
     principal_offset_px: tuple[float, float] | None = None
     lag_s: float | None = None
     speed_variation: float = 0.35
@@ -96,6 +104,9 @@ class CameraConfig:
         if self.motion not in MOTIONS:
             raise ParameterError(f"unknown camera motion {self.motion!r}; expected one of "
                                  f"{list(MOTIONS)}", where="camera")
+        if self.lens not in LENSES:
+            raise ParameterError(f"unknown lens {self.lens!r}; expected one of "
+                                 f"{list(LENSES)}", where="camera.lens")
         d = asdict(self)
         for key, val in _DEFAULTS[self.motion].items():
             if d[key] is None:
@@ -105,12 +116,13 @@ class CameraConfig:
                   ("lag_s", 0.01, 5.0), ("speed_variation", 0.0, 0.9),
                   ("jitter_m", 0.0, 0.1), ("jitter_deg", 0.0, 5.0),
                   ("yaw_wander_deg", 0.0, 20.0), ("height_wander_m", 0.0, 0.3),
-                  ("k1", -0.5, 0.5), ("k2", -0.5, 0.5), ("yaw_offset_max_deg", 0.0, 45.0)]
+                  ("k1", -0.5, 0.5), ("k2", -0.5, 0.5), ("yaw_offset_max_deg", 0.0, 45.0),
+                  ("pixel_aspect", 0.5, 2.0)]
         for key, lo, hi in checks:
             v = getattr(out, key)
             if not np.isfinite(v) or not lo <= v <= hi:
                 raise ParameterError(f"{v!r} is outside [{lo}, {hi}]", where=f"camera.{key}")
-        if out.view_m >= out.height_m * 3:
+        if out.view_m >= out.height_m * 3 and out.lens != "fisheye":
             raise ParameterError("view wider than 3x the camera height needs a fisheye",
                                  where="camera.view_m")
         return out
@@ -210,7 +222,8 @@ class CameraPath:
     def camera(self, t: float) -> Camera:
         """The full :class:`Camera` at time ``t`` (s)."""
         return Camera(self.f_px, self.cx, self.cy, self.width, self.height,
-                      R=self.rotation(t), C=self.centre(t)[0], k1=self.cfg.k1, k2=self.cfg.k2)
+                      R=self.rotation(t), C=self.centre(t)[0], k1=self.cfg.k1, k2=self.cfg.k2,
+                      pixel_aspect=self.cfg.pixel_aspect, lens=self.cfg.lens)
 
     def yaw_deg(self, t) -> np.ndarray:
         """Image +u direction in the world (deg CCW from +X), without the fast shake."""

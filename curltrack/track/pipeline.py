@@ -13,7 +13,7 @@ The tracker never reads renderer truth: everything comes from the pixels and the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field as dc_field
 
 import numpy as np
 
@@ -49,7 +49,8 @@ class FrameRecord:
 
     frame: int
     t: float
-    status: str = ""  # "" = measured, else the reason it is not
+    status: str = ""
+    field: int | None = None  # interlaced video: 0/1 = the field exposed first/second  # "" = measured, else the reason it is not
     markers_px: np.ndarray | None = None  # (M, 2) observed px
     H: np.ndarray | None = None  # undistorted px -> lattice m
     centre_app: np.ndarray | None = None  # apparent rock axis on the ice (m)
@@ -57,10 +58,13 @@ class FrameRecord:
     scale: float = np.nan  # apparent layout scale H/(H-h)
     sigma_m: float = np.nan  # 1 sigma of one marker on the ice (m)
     grid_sigma_m: float = np.nan  # 1 sigma of the homography at the image centre (m)
+    grid_residual_m: float = np.nan  # thread points' RMS miss of the fitted lattice (m)
+    m_per_px: float = np.nan  # ice metres per image px at the rock
     spacing_px: float = np.nan
     contrast: float = np.nan
+    segment: int = 0  # the grid's cell-index segment (GridPose.segment)
     outline_m: float = np.nan  # radius of the rock's outline (m, lattice; track.outline)
-    notes: list = field(default_factory=list)
+    notes: list = dc_field(default_factory=list)
 
 
 class _Follower:
@@ -206,8 +210,10 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     L = det.layout_m
     seen_markers = False
     markers_ice: list[tuple[int, np.ndarray]] = []  # last two measured (frame, (M, 2) m)
+    rec_segment = 0  # grid segment of markers_ice
     for fr in frames:
-        rec = FrameRecord(fr.index, fr.t)
+        rec = FrameRecord(fr.index, fr.t, field=fr.field)
+        k = fr.sample  # running exposure index (frames, or fields of interlaced video)
         records.append(rec)
         if progress is not None:
             progress(1)
@@ -215,7 +221,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         if not seen_markers and float(img[::8, ::8].std()) < BLANK_STD:  # black lead-in
             rec.status = BLANK  # (before the detector sees it: it adapts to what it sees)
             continue
-        mf = fol.detect(img, fr.index)
+        mf = fol.detect(img, k)
         found = mf is not None and bool(mf.found.all())
         if not found:
             rec.status = ("rock/markers not found" if mf is None else
@@ -228,7 +234,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
                         f"{records[0].frame}-{fr.index}", path=path, where=f"frame {fr.index}")
                 continue
         seen_markers = True
-        mask = fol.mask(img.shape, fr.index)
+        mask = fol.mask(img.shape, k)
         if tracker is None:
             if not found:
                 continue
@@ -248,8 +254,8 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             M = len(L)
             q = undistort(np.vstack([mf.xy_px, pixel_steps(mf.xy_px.mean(axis=0))]),
                           calib.K, calib.dist)
-            anchor = _anchor(markers_ice, q[:M], fr.index)
-        pose = tracker.update(img, fr.index, mask=mask, anchor=anchor)
+            anchor = _anchor(markers_ice, q[:M], k)
+        pose = tracker.update(img, k, mask=mask, anchor=anchor)
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px
         if not found:
@@ -260,7 +266,10 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             continue
         on_ice = apply_h(pose.H, q)
         ice = on_ice[:M]
-        markers_ice = (markers_ice + [(fr.index, ice)])[-2:]
+        if pose.segment != rec_segment:  # (the last positions are in another cell index)
+            markers_ice, rec_segment = [], pose.segment
+        rec.segment = pose.segment
+        markers_ice = (markers_ice + [(k, ice)])[-2:]
         c, phi, s, _ = similarity_fit(L, ice)
         mpp = pixel_scale(on_ice[M:])
         rec.centre_app, rec.phi, rec.scale = c, phi, s
@@ -269,6 +278,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
                                            rig.rock_diameter_m / 2)[0]
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
         rec.grid_sigma_m = (pose.sigma_px if np.isfinite(pose.sigma_px) else 0.3) * mpp
+        rec.grid_residual_m, rec.m_per_px = pose.residual_px * mpp, mpp
         rec.contrast = float(np.min(mf.contrast))
         if pose.message:
             rec.notes.append(pose.message)
@@ -356,8 +366,9 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
                          path=video_path, where="--end-frame")
     end = min(end, info.n_frames)
     exclude = sorted({int(i) for i in exclude_frames if start <= int(i) < end})
+    fields = info.interlaced
     frames = iter_frames(video_path, start=start, end=end, exclude=exclude,
-                         fps_override=rig.fps)
+                         fps_override=rig.fps, decoder=info.decoder, fields=fields)
     total = end - start - len(exclude)
     import cv2
 
@@ -391,10 +402,12 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         exclude = [i for i in exclude if i >= start]
     # Excluded frames are rows too (ok = 0), at their nominal time.
     dt = 1.0 / info.fps
-    by_frame = {r.frame: r for r in records}
-    t_of = _time_interpolator(records, start, dt)
+    by_frame = {(r.frame, r.field or 0): r for r in records}
+    t_of = _time_interpolator([r for r in records if not r.field], start, dt)
     for i in exclude:
-        by_frame[i] = FrameRecord(i, t_of(i), status="excluded by the user")
+        for fld in ((0, 1) if fields else (None,)):
+            by_frame[(i, fld or 0)] = FrameRecord(i, t_of(i) + 0.5 * dt * (fld or 0),
+                                                  status="excluded by the user", field=fld)
     records = [by_frame[i] for i in sorted(by_frame)]
     corr_warnings = []
     if corr is not None:
