@@ -147,7 +147,9 @@ def render(
         kw = {k: v for k, v in dict(phi_y=phi, alpha_y=alpha, phi_theta=phi,
                                     alpha_theta=alpha, a_T=a_T).items() if v is not None}
         shot = ShotModel.from_rig(the_rig, v0=v0, omega0=omega0, **kw)
-        series = simulate_series(shot, fps=fps or the_rig.fps or 30.0, tail_s=0.0)
+        # the rest after the stop is part of the shot: without it the video ended a frame
+        # before the stop and `fit` pinned t_F at its limit
+        series = simulate_series(shot, fps=fps or the_rig.fps or 30.0, tail_s=stopped_tail_s)
     offset = None
     if principal_offset is not None:
         try:

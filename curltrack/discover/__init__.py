@@ -136,7 +136,13 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
         cands = [c for c in cands if not c.extension]
     if effects:
         cands = [c for c in cands if c.name in set(effects)]
-    scores = [score_candidate(base, fit0, c, seg_slices, rng, n_boot=n_boot) for c in cands]
+    from ..progress import progress_bar  # on a terminal only: the bootstrap takes seconds
+
+    scores = []
+    with progress_bar("discover: bootstrap of each candidate", len(cands)) as advance:
+        for c in cands:
+            scores.append(score_candidate(base, fit0, c, seg_slices, rng, n_boot=n_boot))
+            advance()
     # nonlinear refits of every candidate whose linear delta-BIC comes near its
     # threshold.  (The linear gain is exact near the null, where thresholds live, but can
     # underestimate a strong effect several-fold, so it never ranks candidates.)

@@ -42,7 +42,7 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
     seed : int
         Every random choice (placement, camera path, ice, noise) derives from it.
     progress : bool
-        Print progress to stderr.
+        A progress bar on stderr (when it is a terminal).
 
     Returns
     -------
@@ -76,17 +76,17 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
                              prod.cfg.encoding, sen.field_order if sen.interlaced else None,
                              prod.cam_cfg.pixel_aspect)
         written = 0
+        from ..progress import progress_bar
+
         try:
-            for img, info in prod.frames():
-                writer.write(img, info.t)
-                written += 1
-                if progress and (info.index % 30 == 0 or info.index == prod.n_frames - 1):
-                    print(f"\rrender: frame {info.index + 1}/{prod.n_frames}", end="",
-                          file=sys.stderr)
+            with progress_bar("render", prod.n_frames,
+                              enabled=progress and sys.stderr.isatty()) as advance:
+                for img, info in prod.frames():
+                    writer.write(img, info.t)
+                    written += 1
+                    advance()
         finally:
             writer.close()
-        if progress:
-            print(file=sys.stderr)
         verify_video(tmp, written, video_path)
     truth = prod.truth()
     if truth_path is not None:

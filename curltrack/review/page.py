@@ -217,6 +217,57 @@ if (video) {
     video.requestVideoFrameCallback(loop);
   }
 }
+// corrections: click the rock's markers on the shown frame (in the rig's order)
+const corr = {click_sigma_px: 1.0, frames: {}};
+window.reviewState.corrections = corr;
+const canvas = document.getElementById('clicks');
+let marking = null;
+function place() {
+  if (!video || !canvas) return;
+  canvas.width = video.clientWidth; canvas.height = video.clientHeight;
+  canvas.style.width = video.clientWidth + 'px'; canvas.style.height = video.clientHeight + 'px';
+}
+function markStatus(text) { document.getElementById('markstatus').textContent = text; }
+function startMarking() {
+  if (!video) return;
+  video.pause(); place();
+  const f = frameAt(video.currentTime);
+  marking = {frame: f, px: []};
+  canvas.style.display = 'block';
+  canvas.getContext('2d').clearRect(0, 0, canvas.width, canvas.height);
+  markStatus('frame ' + f + ': click marker ' + R.markers[0] + ' (1 of ' + R.markers.length + ')');
+}
+if (canvas) canvas.addEventListener('click', ev => {
+  if (!marking) return;
+  const r = canvas.getBoundingClientRect();
+  const sx = video.videoWidth / r.width, sy = video.videoHeight / r.height;
+  const u = (ev.clientX - r.left) * sx - 0.5, v = (ev.clientY - r.top) * sy - 0.5;
+  marking.px.push([u, v]);
+  const g = canvas.getContext('2d');
+  g.strokeStyle = '#ff0'; g.lineWidth = 2; g.beginPath();
+  g.arc(ev.clientX - r.left, ev.clientY - r.top, 6, 0, 2 * Math.PI); g.stroke();
+  const k = marking.px.length;
+  if (k < R.markers.length) {
+    markStatus('frame ' + marking.frame + ': click marker ' + R.markers[k] + ' (' + (k + 1) +
+               ' of ' + R.markers.length + ')');
+    return;
+  }
+  corr.frames[String(marking.frame)] = {markers_px: marking.px};
+  markStatus('frame ' + marking.frame + ' marked; ' + Object.keys(corr.frames).length +
+             ' frame(s) in the corrections');
+  marking = null; canvas.style.display = 'none';
+});
+function excludeFrame() {
+  if (!video) return;
+  const f = frameAt(video.currentTime);
+  corr.frames[String(f)] = {exclude: true};
+  markStatus('frame ' + f + ' excluded; ' + Object.keys(corr.frames).length + ' frame(s) in the corrections');
+}
+function downloadCorrections() {
+  const blob = new Blob([JSON.stringify(corr, null, 1)], {type: 'application/json'});
+  const a = document.createElement('a');
+  a.href = URL.createObjectURL(blob); a.download = 'corrections.json'; a.click();
+}
 window.reviewState.ready = true;
 """
 
@@ -227,6 +278,8 @@ body { font-family: system-ui, sans-serif; margin: 12px 20px; color: #222; }
 #fit { max-height: 420px; overflow-y: auto; }
 #top { display: flex; gap: 16px; align-items: flex-start; flex-wrap: wrap; }
 video { max-width: 100%; width: 720px; background: #000; }
+#videobox { position: relative; display: inline-block; }
+#clicks { position: absolute; left: 0; top: 0; display: none; cursor: crosshair; }
 #frameinfo { font-family: monospace; margin: 4px 0 10px; white-space: pre; }
 table { border-collapse: collapse; font-size: 13px; }
 td { border: 1px solid #ccc; padding: 2px 6px; }
@@ -236,7 +289,8 @@ h2 { margin: 18px 0 4px; font-size: 18px; }
 
 def build_page(series: Series, fit=None, report=None, video_mp4: bytes | None = None,
                video_frames=None, fps: float | None = None, warnings=(), notes=(),
-               title: str | None = None, plotlyjs_src: str | None = None) -> str:
+               title: str | None = None, plotlyjs_src: str | None = None,
+               markers=("m0", "m1")) -> str:
     """The review page as one HTML string (plotly.js and the video inlined).
 
     Parameters
@@ -255,6 +309,8 @@ def build_page(series: Series, fit=None, report=None, video_mp4: bytes | None = 
         The overlay's frame rate (frames/s).
     warnings, notes : sequence of str
         Shown on top / under the title.
+    markers : sequence of str
+        Names of the rig's markers, in order (the corrections' clicks follow it).
     plotlyjs_src : str, optional
         A relative URL of plotly.min.js shared by several pages (``batch --report``);
         default: inlined.
@@ -273,7 +329,7 @@ def build_page(series: Series, fit=None, report=None, video_mp4: bytes | None = 
         v = d[c].to_numpy(float)
         return [None if not np.isfinite(x) else float(x) for x in v]
 
-    data = {"fps": float(fps or series.meta.get("fps") or 30.0),
+    data = {"fps": float(fps or series.meta.get("fps") or 30.0), "markers": list(markers),
             "video_frames": [int(f) for f in (video_frames if video_frames is not None
                                               else d["frame"])],
             "rows": {"frame": [int(f) for f in d["frame"]], "ok": [int(v) for v in d["ok"]],
@@ -287,8 +343,14 @@ def build_page(series: Series, fit=None, report=None, video_mp4: bytes | None = 
                  "</ul></div>") if warnings else '<div id="warnings"></div>'
     if video_mp4:
         b64 = base64.b64encode(video_mp4).decode("ascii")
-        video_html = (f'<video id="video" controls muted preload="auto" playsinline '
-                      f'src="data:video/mp4;base64,{b64}"></video>')
+        video_html = (f'<div id="videobox"><video id="video" controls muted preload="auto" '
+                      f'playsinline src="data:video/mp4;base64,{b64}"></video>'
+                      '<canvas id="clicks"></canvas></div><div><button id="mark" '
+                      'onclick="startMarking()">mark the markers on this frame</button> '
+                      '<button id="exclude" onclick="excludeFrame()">exclude this frame'
+                      '</button> <button id="download" onclick="downloadCorrections()">'
+                      'download corrections.json</button> <span id="markstatus"></span>'
+                      '</div>')
     else:
         video_html = '<p id="novideo">No overlay video (give <code>--overlay OUT.mp4</code>).</p>'
     note_html = "".join(f"<p>{html.escape(n)}</p>" for n in notes)
@@ -357,8 +419,17 @@ def write_review(series_path, out_path, overlay=None, report_path=None, rig=None
                             f"{len(series.data)} rows; plot points are mapped to video "
                             "frames by their index from the start frame")
         notes.append(f"overlay video: {overlay} ({n} frames at {fps:.3f} fps)")
+    if rig is None and series.meta.get("rig"):
+        from ..rig import load_rig
+
+        try:
+            rig = load_rig(series.meta["rig"])
+        except CurltrackError:
+            notes.append(f"the rig {series.meta['rig']} named in the sidecar cannot be read: "
+                         "marker names for corrections are m0, m1, ...")
+    names = [f"m{i} ({m.color})" for i, m in enumerate(rig.markers)] if rig else ["m0", "m1"]
     write_text(out_path, build_page(series, fit, report, mp4, frames, fps, warnings, notes,
-                                    plotlyjs_src=plotlyjs_src))
+                                    plotlyjs_src=plotlyjs_src, markers=names))
     return warnings
 
 

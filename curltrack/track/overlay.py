@@ -15,7 +15,7 @@ import numpy as np
 from .._atomic import atomic_path, verify_video
 from ..errors import VideoError
 
-__all__ = ["write_overlay", "overlay_frames", "encode_h264", "TRAIL_BGR"]
+__all__ = ["write_overlay", "overlay_frames", "encode_h264", "write_debug_frames", "TRAIL_BGR"]
 
 #: Trail colour (BGR), drawn without anti-aliasing so that its pixels can be found.
 TRAIL_BGR = (255, 0, 255)
@@ -89,14 +89,15 @@ def _runs(px, frames):
     return out
 
 
-def _caption(img, text):
+def _caption(img, text, line=0):
     """One line of white text on a dark box (readable on any ice, one text drawn)."""
     import cv2
 
     font, scale, th = cv2.FONT_HERSHEY_SIMPLEX, 0.5, 1
     (w, h), base = cv2.getTextSize(text, font, scale, th)
-    cv2.rectangle(img, (4, 4), (14 + w, 14 + h + base), (0, 0, 0), -1)
-    cv2.putText(img, text, (9, 9 + h), font, scale, (255, 255, 255), th, cv2.LINE_AA)
+    y0 = 4 + line * (h + base + 12)
+    cv2.rectangle(img, (4, y0), (14 + w, y0 + 10 + h + base), (0, 0, 0), -1)
+    cv2.putText(img, text, (9, y0 + 5 + h), font, scale, (255, 255, 255), th, cv2.LINE_AA)
 
 
 def overlay_frames(video_path, records, series, calib, rig, start=0, end=None, exclude=()):
@@ -230,6 +231,50 @@ def write_overlay(video_path, overlay_path, records, series, loop_info, rig, sta
             raise VideoError(f"cannot encode the overlay as H.264 ({exc})",
                              path=overlay_path) from None
         verify_video(tmp, n, overlay_path)
+
+
+def write_debug_frames(video_path, outdir, frames, records, series, calib, rig):
+    """PNG of what tracking found on each of ``frames``: the overlay's drawing plus each
+    marker's index, and the frame's numbers (status, grid spacing, sigma, quality).
+
+    Returns the paths written (``outdir/frame_NNNNNN.png``).
+    """
+    import cv2
+    from pathlib import Path
+
+    outdir = Path(outdir)
+    by_frame = {r.frame: r for r in records}
+    data = series.data.set_index("frame")
+    written = []
+    for f in sorted(set(int(v) for v in frames)):
+        if f not in by_frame:
+            continue
+        rec = by_frame[f]
+        for _, img in overlay_frames(video_path, records, series, calib, rig, start=f,
+                                     end=f + 1):
+            if rec.markers_px is not None:
+                for i, p in enumerate(rec.markers_px):
+                    if np.isfinite(p).all():
+                        cv2.putText(img, f"m{i}", (int(p[0]) + 9, int(p[1]) - 9),
+                                    cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
+                                    cv2.LINE_AA)
+            row = data.loc[f] if f in data.index else None
+            found = 0 if rec.markers_px is None else int(np.isfinite(rec.markers_px).all(1).sum())
+            lines = [f"status: {rec.status or 'measured'}",
+                     f"grid {'found' if rec.H is not None else 'not found'}; thread spacing "
+                     f"{rec.spacing_px:.1f} px; markers found {found}/{len(rig.markers)}"]
+            if row is not None and row["ok"] == 1 and "sigma_xy" in row:
+                lines.append(f"sigma_xy {row['sigma_xy'] * 1e3:.2f} mm, sigma_theta "
+                             f"{np.degrees(row['sigma_theta']):.2f} deg, quality "
+                             f"{row['quality']:.2f}")
+            for k, text in enumerate(lines, start=1):
+                _caption(img, text, line=k)
+            path = outdir / f"frame_{f:06d}.png"
+            with atomic_path(path) as tmp:
+                if not cv2.imwrite(str(tmp), img):
+                    raise VideoError("cannot write the debug image", path=path)
+            written.append(path)
+    return written
 
 
 _encode = encode_h264

@@ -306,7 +306,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
 
 def track_video(video_path, rig: Rig, start_frame: int | None = None,
                 end_frame: int | None = None, exclude_frames=(), overlay_path=None,
-                progress: bool = False):
+                progress: bool = False, debug_frames=(), debug_dir=None, corrections=None):
     """Track a shot video: x(t), y(t), theta(t) in the shot frame, with stop times.
 
     Parameters
@@ -325,6 +325,11 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         Write an annotated video there (second pass over the video).
     progress : bool
         Show a progress bar (rich) on stderr.
+    debug_frames, debug_dir : iterable of int, path, optional
+        Write a PNG of what was found on each of these frames into ``debug_dir``.
+    corrections : path, optional
+        A corrections file (:mod:`curltrack.track.corrections`): frames measured from
+        clicked marker positions, frames excluded; recorded in the sidecar.
 
     Notes
     -----
@@ -354,6 +359,11 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     from .results import build_series
 
     info = probe_video(video_path, fps_override=rig.fps)
+    corr = None
+    if corrections is not None:  # read first: a bad file fails before the long pass
+        from .corrections import read_corrections
+
+        corr = read_corrections(corrections, len(rig.markers))
     start = int(start_frame or 0)
     end = info.n_frames if end_frame is None else int(end_frame) + 1
     if not 0 <= start < info.n_frames:
@@ -372,7 +382,6 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     frames = iter_frames(video_path, start=start, end=end, exclude=exclude,
                          fps_override=rig.fps, decoder=info.decoder, fields=fields)
     total = end - start - len(exclude)
-    bar = _progress_bar(total, str(video_path)) if progress else None
     import cv2
 
     # OpenCV's own threads (and the decoder's, in curltrack.video) = CURLTRACK_THREADS,
@@ -386,15 +395,16 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     n_threads = decoder_threads()
     if n_threads > 0:
         cv2.setNumThreads(n_threads)
+    from ..progress import progress_bar
+
     try:
-        with threadpool_limits(limits=max(n_threads, 1), user_api="blas"):
+        with threadpool_limits(limits=max(n_threads, 1), user_api="blas"), \
+                progress_bar("tracking", total, enabled=progress) as advance:
             records, loop_info = track_frames(frames, rig, path=video_path,
-                                              progress=bar[1] if bar else None,
+                                              progress=advance if progress else None,
                                               outline_every=max(2, total // OUTLINE_FRAMES))
     finally:
         cv2.setNumThreads(threads_before)
-        if bar:
-            bar[0].stop()
     blank = _blank_lead(records) if start_frame is None else 0
     if blank:  # black / empty frames before the scene: t = 0 at the first real frame
         records, start = records[blank:], records[blank].frame
@@ -411,7 +421,18 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
             by_frame[(i, fld or 0)] = FrameRecord(i, t_of(i) + 0.5 * dt * (fld or 0),
                                                   status="excluded by the user", field=fld)
     records = [by_frame[i] for i in sorted(by_frame)]
+    corr_warnings = []
+    if corr is not None:
+        from .corrections import apply_corrections
+
+        corr_warnings = apply_corrections(records, corr, loop_info["calib"], rig)
     series = build_series(records, rig, info, start, loop_info, path=video_path)
+    if corr is not None:
+        series.meta["corrections"] = {
+            "file": corr["file"], "click_sigma_px": corr["click_sigma_px"],
+            "frames_from_clicks": sorted(corr["clicked"]),
+            "frames_excluded": sorted(corr["excluded"])}
+        series.meta["warnings"].extend(corr_warnings)
     if blank:
         series.meta["warnings"].insert(0, f"frames {start - blank}-{start - 1} show neither "
                                        f"rock nor grid (black or empty): skipped; t = 0 at "
@@ -419,8 +440,14 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     if overlay_path is not None:
         from .overlay import write_overlay
 
-        write_overlay(video_path, overlay_path, records, series, loop_info, rig,
-                      start=start, end=end, exclude=exclude)
+        with progress_bar("overlay", total, enabled=progress) as advance:
+            write_overlay(video_path, overlay_path, records, series, loop_info, rig,
+                          start=start, end=end, exclude=exclude, progress=advance)
+    if debug_dir is not None and len(debug_frames):
+        from .overlay import write_debug_frames
+
+        write_debug_frames(video_path, debug_dir, debug_frames, records, series,
+                           loop_info["calib"], rig)
     return series
 
 
@@ -448,16 +475,3 @@ def _time_interpolator(records, start, dt):
         return float(np.interp(i, frames, times))
 
     return t_of
-
-
-def _progress_bar(total: int, name: str):
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                               TimeRemainingColumn)
-
-    from rich.console import Console
-
-    prog = Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(),
-                    TimeRemainingColumn(), transient=True, console=Console(stderr=True))
-    task = prog.add_task(name, total=total)
-    prog.start()
-    return prog, (lambda n: prog.advance(task, n))

@@ -55,7 +55,7 @@ def test_review_page_in_a_browser(page_file):
     outside = []
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"])
-        ctx = browser.new_context(viewport={"width": 1400, "height": 1000})
+        ctx = browser.new_context(viewport={"width": 1400, "height": 1000}, accept_downloads=True)
         page = ctx.new_page()
 
         def block(route):  # offline: nothing but the file itself may be fetched
@@ -97,6 +97,23 @@ def test_review_page_in_a_browser(page_file):
         cursor = page.evaluate("document.getElementById('series').layout.shapes[0].x0")
         t_f = float(series.data.set_index("frame").loc[f, "t"])
         assert abs(cursor - t_f) < 1e-9
+        # corrections: mark the markers of the shown frame by clicking, then download
+        page.click("#mark")
+        box = page.locator("#clicks").bounding_box()
+        picks = [(0.25, 0.5), (0.75, 0.4)]
+        for fx, fy in picks:
+            page.mouse.click(box["x"] + fx * box["width"], box["y"] + fy * box["height"])
+        marked = page.evaluate("window.reviewState.corrections.frames")
+        assert list(marked) == [str(f)], marked
+        want = [[fx * 640 - 0.5, fy * 360 - 0.5] for fx, fy in picks]
+        np.testing.assert_allclose(marked[str(f)]["markers_px"], want, atol=1.0)
+        with page.expect_download() as dl:
+            page.click("#download")
+        saved = Path(dl.value.path())
+        from curltrack.track.corrections import read_corrections
+
+        corr = read_corrections(saved, 2)  # what `track --corrections` reads
+        assert list(corr["clicked"]) == [f]
         page.screenshot(path=str(artifacts / "review_page.png"), full_page=False)
         browser.close()
     assert outside == [], f"the page fetched from the network: {outside[:3]}"
