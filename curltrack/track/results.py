@@ -17,6 +17,10 @@ from .stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
 
+#: Largest 1 sigma (m) of an origin extrapolated back to t = 0 that a series may carry
+#: (in sigma_xy); beyond it every position would be uncertain by more: an error.
+MAX_ORIGIN_SIGMA_M = 0.010
+
 #: Frames whose layout scale is this many robust sigmas off the video's are rejected.
 SCALE_OUTLIER_SIGMA = 6.0
 MIN_MEASURED = 8
@@ -211,6 +215,12 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
     sigma_xy = est.k * np.hypot(SIGMA_STAT_SCALE * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
                                 SIGMA_MISFIT_SCALE * sig_r)
+    if shot["origin_sigma_m"] > MAX_ORIGIN_SIGMA_M:
+        raise TrackingError(f"the first measured frame is at t = {t[ok][0]:.2f} s and the "
+                            "origin (the rock at t = 0) cannot be extrapolated back to it "
+                            f"better than ~{1e3 * shot['origin_sigma_m']:.0f} mm: give "
+                            "--start-frame at a frame where the rock and the grid are "
+                            "seen", path=path, where=f"frames 0-{frame[ok][0]}")
     sigma_xy = np.hypot(sigma_xy, shot["origin_sigma_m"])
     if shot["origin_sigma_m"] > 1e-3:
         warnings.append(f"{path}: the first measured frame is at t = {t[ok][0]:.2f} s: the "
