@@ -60,6 +60,8 @@ def run(cmd: str, out: Path):
 
 
 def produce(out: Path, only=None):
+    """Run every case into ``out`` (a video already there is tracked again, not
+    re-rendered: the comparison is of what comes after the renderer)."""
     out.mkdir(parents=True, exist_ok=True)
     for name, (sim, ren) in RENDERED.items():
         if only and name not in only:
@@ -101,8 +103,8 @@ def _walk(a, b, path, out):
 def compare(before: Path, after: Path) -> int:
     n_diff = 0
     for fa in sorted(before.iterdir()):
-        if fa.suffix not in (".csv", ".json") or fa.name.endswith("_sim.csv") \
-                or fa.name.endswith("_sim.json"):
+        if fa.suffix not in (".csv", ".json") or fa.stem.endswith("_sim") \
+                or any(k in fa.name for k in (".truth.", ".render.", ".rig.")):
             continue
         fb = after / fa.name
         if not fb.exists():

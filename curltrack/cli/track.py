@@ -75,7 +75,7 @@ def track(
     series = track_video(video, r, start_frame=start_frame, end_frame=end_frame,
                          exclude_frames=excl, overlay_path=overlay,
                          progress=not no_progress and sys.stderr.isatty())
-    series.meta["rig"] = str(rig)
+    series = series.with_meta(rig=str(rig))
     side = write_series(output, series)
     if not quiet:
         m = series.meta

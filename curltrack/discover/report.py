@@ -1,4 +1,4 @@
-"""REPORT.json content, the verdict, and the figure."""
+"""The report (:class:`~.results.DiscoveryReport`), the verdict, and the figure."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 
 from .._atomic import atomic_path, write_json
 from .residuals import binned_means
-from .scoring import bic
+from .results import DiscoveryReport, Finding
 from .shots import COORDS
 
 #: a candidate is named only if its delta-BIC beats every other candidate's by at least
@@ -87,42 +87,39 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN) -> list:
     return sorted(out)
 
 
-def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
-    """Assemble REPORT.json and decide the verdict (rule in :mod:`curltrack.discover`)."""
+def _finding(sc, rms0, h0, h0_loso, base) -> Finding:
+    """The finding of one scored candidate (supported or not)."""
+    thr = sc.threshold["threshold"]
+    kw = dict(effect=sc.name, delta_bic=sc.delta_bic, delta_bic_linear=sc.delta_bic_linear,
+              threshold=thr, bootstrap=sc.threshold, location_start=sc.location,
+              rms_before=rms0, rms_after=None, heldout_rmse_before=h0["scalar"],
+              heldout_rmse_after=None, heldout_before_by_coord={c: h0[c] for c in COORDS},
+              params=sc.params, params_err=sc.params_err, note=sc.note, nfev=sc.nfev,
+              evidence=_evidence(sc, h0), fit=sc.fit)
+    if sc.fit is None:
+        return Finding(**kw)
+    kw.update(rms_after=_rms_by_coord(base, sc.fit.r_raw),
+              heldout_rmse_after=sc.heldout["time"]["scalar"],
+              heldout_after_by_coord={c: sc.heldout["time"][c] for c in COORDS},
+              structure_after={"p_min_adjusted": sc.structure_after.p_min_adjusted,
+                               "structured": sc.structure_after.structured,
+                               "where": sc.structure_after.where})
+    ok_cv = kw["heldout_rmse_after"] < kw["heldout_rmse_before"]
+    if h0_loso is not None and "shot" in sc.heldout:
+        kw.update(loso_rmse_before=h0_loso["scalar"],
+                  loso_rmse_after=sc.heldout["shot"]["scalar"])
+        ok_cv = ok_cv or kw["loso_rmse_after"] < kw["loso_rmse_before"]
+    return Finding(**kw, supported=bool(sc.delta_bic > max(thr, 0.0) and ok_cv))
+
+
+def build_report(shots, base, fit0, before, h0, h0_loso, scores,
+                 not_tested=None) -> DiscoveryReport:
+    """Assemble the report and decide the verdict (rule in :mod:`curltrack.discover`)."""
     n = fit0.n
     rms0 = _rms_by_coord(base, fit0.r_raw)
     vals, errs = _baseline_params(fit0)
-    findings = []
-    supported = []
-    for sc in scores:
-        thr = sc.threshold["threshold"]
-        f = {"effect": sc.name, "delta_bic": sc.delta_bic, "delta_bic_linear": sc.delta_bic_linear,
-             "threshold": thr, "bootstrap": sc.threshold, "location_start": sc.location,
-             "rms_before": rms0, "rms_after": None,
-             "heldout_rmse_before": h0["scalar"], "heldout_rmse_after": None,
-             "heldout_before_by_coord": {c: h0[c] for c in COORDS},
-             "heldout_after_by_coord": None, "params": sc.params, "params_err": sc.params_err,
-             "note": sc.note, "nfev": sc.nfev}
-        if sc.fit is not None:
-            f["rms_after"] = _rms_by_coord(base, sc.fit.r_raw)
-            f["heldout_rmse_after"] = sc.heldout["time"]["scalar"]
-            f["heldout_after_by_coord"] = {c: sc.heldout["time"][c] for c in COORDS}
-            if h0_loso is not None and "shot" in sc.heldout:
-                f["loso_rmse_before"] = h0_loso["scalar"]
-                f["loso_rmse_after"] = sc.heldout["shot"]["scalar"]
-            f["structure_after"] = {"p_min_adjusted": sc.structure_after.p_min_adjusted,
-                                    "structured": sc.structure_after.structured,
-                                    "where": sc.structure_after.where}
-            ok_cv = f["heldout_rmse_after"] < f["heldout_rmse_before"]
-            if "loso_rmse_after" in f:
-                ok_cv = ok_cv or f["loso_rmse_after"] < f["loso_rmse_before"]
-            f["supported"] = bool(sc.delta_bic > max(thr, 0.0) and ok_cv)
-        else:
-            f["supported"] = False
-        f["evidence"] = _evidence(sc, h0)
-        findings.append(f)
-        if f["supported"]:
-            supported.append((sc, f))
+    findings = [_finding(sc, rms0, h0, h0_loso, base) for sc in scores]
+    supported = [(sc, f) for sc, f in zip(scores, findings) if f.supported]
     verdict, unexplained = "none", None
     best_fit, best_model_name, best_params = fit0, None, {}
     ambiguous = []
@@ -159,49 +156,41 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores) -> dict:
                         f"structured (a free mean in 10 time bins per series gains "
                         f"chi-square {gain:.1f} for {k} parameters); the largest misfit "
                         f"sits at {where_txt}")
-        findings.append({
-            "effect": "unexplained", "delta_bic": float(gain - k * np.log(n)),
-            "rms_before": rms0, "rms_after": _rms_by_coord(base, best_fit.r_raw),
-            "heldout_rmse_before": h0["scalar"], "heldout_rmse_after": None,
-            "params": {}, "params_err": {}, "where": unexplained, "evidence": evidence})
-    findings.sort(key=lambda f: -np.inf if f["delta_bic"] is None else -f["delta_bic"])
-    report = {
-        "baseline": {"model": base.baseline, "params": vals, "params_err": errs,
-                     "rms": rms0, "bic": bic(fit0.chi2, fit0.k, n),
-                     "chi2": fit0.chi2, "n_points": n, "k": fit0.k,
-                     "heldout_rmse": h0["scalar"],
-                     "heldout_by_coord": {c: h0[c] for c in COORDS},
-                     "loso_rmse": h0_loso["scalar"] if h0_loso else None},
-        "findings": findings,
-        "verdict": verdict,
-        "unexplained": unexplained,
-        "structure_before": {"p_min_adjusted": before.p_min_adjusted,
-                             "structured": before.structured, "where": before.where,
-                             "tests": before.tests},
-        "noise": [{"file": s.name, **{c: s.noise[c].as_dict() for c in COORDS}}
-                  for s in shots],
-        "shots": [{"file": s.name, "spin": s.spin, "translates": s.translates,
-                   "spins": s.spins, "t_stop_translation": s.t_stop_translation,
-                   "t_stop_rotation": s.t_stop_rotation,
-                   "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
-        "warnings": [w for s in shots for w in s.warnings],
-        "_plot": {"shots": shots, "model": base, "fit0": fit0, "fit1": best_fit,
-                  "extended": best_model_name, "params": best_params},
-    }
-    return report
+        findings.append(Finding(
+            effect="unexplained", delta_bic=float(gain - k * np.log(n)), rms_before=rms0,
+            rms_after=_rms_by_coord(base, best_fit.r_raw), heldout_rmse_before=h0["scalar"],
+            heldout_rmse_after=None, params={}, params_err={}, where=unexplained,
+            evidence=evidence, fit=best_fit))
+    findings.sort(key=lambda f: -np.inf if f.delta_bic is None else -f.delta_bic)
+    return DiscoveryReport(
+        verdict=verdict, findings=tuple(findings),
+        baseline={"model": base.baseline, "params": vals, "params_err": errs,
+                  "rms": rms0, "bic": fit0.bic,
+                  "chi2": fit0.chi2, "n_points": n, "k": fit0.k,
+                  "heldout_rmse": h0["scalar"],
+                  "heldout_by_coord": {c: h0[c] for c in COORDS},
+                  "loso_rmse": h0_loso["scalar"] if h0_loso else None},
+        unexplained=unexplained,
+        structure_before={"p_min_adjusted": before.p_min_adjusted,
+                          "structured": before.structured, "where": before.where,
+                          "tests": before.tests},
+        noise=[{"file": s.name, **{c: s.noise[c].as_dict() for c in COORDS}} for s in shots],
+        shots=[{"file": s.name, "spin": s.spin, "translates": s.translates,
+                "spins": s.spins, "t_stop_translation": s.t_stop_translation,
+                "t_stop_rotation": s.t_stop_rotation,
+                "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
+        warnings=[w for s in shots for w in s.warnings],
+        not_tested=dict(not_tested or {}),
+        shot_data=list(shots), model=base, fit0=fit0, best_fit=best_fit,
+        extended=best_model_name, best_params=best_params)
 
 
-def public(report: dict) -> dict:
-    """The report without its private (``_``) keys, ready for JSON."""
-    return {k: v for k, v in report.items() if not k.startswith("_")}
-
-
-def write_json_report(report: dict, path) -> None:
+def write_json_report(report: DiscoveryReport, path) -> None:
     """Write REPORT.json atomically (NaN/inf become null)."""
-    write_json(path, public(report))
+    write_json(path, report.summary())
 
 
-def plot_report(report: dict, path, max_shots: int = 2) -> None:
+def plot_report(report: DiscoveryReport, path, max_shots: int = 2) -> None:
     """Data, baseline, extended model, and residuals before/after, per coordinate.
 
     One block of two rows per shot (at most ``max_shots``): the top row shows the data
@@ -214,8 +203,8 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    p = report["_plot"]
-    shots, model, fit0, fit1, ext = p["shots"], p["model"], p["fit0"], p["fit1"], p["extended"]
+    shots, model, ext = report.shot_data, report.model, report.extended
+    fit0, fit1 = report.fit0, report.best_fit
     ns = min(len(shots), max_shots)
     fig, axes = plt.subplots(2 * ns, 3, figsize=(13, 4.2 * ns), sharex="col", squeeze=False)
     scale = {"x": 1e3, "y": 1e3, "theta": np.degrees(1.0)}
@@ -242,13 +231,13 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
             bot.set_ylabel(f"residual {c} ({unit[c]})")
             if len(t) == 0:
                 top.text(0.5, 0.5, "not used", transform=top.transAxes, ha="center")
-            _mark_effect(top, bot, ext, p.get("params", {}), s, fit1.predictions[j], j)
+            _mark_effect(top, bot, ext, report.best_params, s, fit1.predictions[j], j)
         axes[2 * j, 0].set_title(str(s.name).split("/")[-1], loc="left", fontsize=9)
         axes[2 * j, 0].legend(fontsize=7, loc="best")
         axes[2 * j + 1, 0].legend(fontsize=7, loc="best")
     for ax in axes[-1]:
         ax.set_xlabel("t (s)")
-    fig.suptitle(f"verdict: {report['verdict']}", fontsize=11)
+    fig.suptitle(f"verdict: {report.verdict}", fontsize=11)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110)

@@ -8,8 +8,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SeriesError
-from ..series import Series
-from .noise import Noise, estimate_noise
+from ..rig import default_rig
+from ..series import Series, series_stops
+from ..series.noise import Noise, row_sigma
 
 COORDS = ("x", "y", "theta")
 #: rows kept after a stop (s): they pin the stop and the final position
@@ -78,20 +79,10 @@ class ShotData:
                    if v)
 
 
-def _stop(series: Series, key: str, detected, warnings: list):
-    v = series.meta.get(key)
-    if v is not None:
-        return float(v)
-    if detected is None:
-        return None
-    val = getattr(detected, key)
-    warnings.append(f"{series.name}: no '{key}' in the sidecar; detected from the series "
-                    f"({'none' if val is None else f'{val:.3f} s'})")
-    return val
-
-
-def shot_from_series(series: Series) -> ShotData:
+def shot_from_series(series: Series, rig=None) -> ShotData:
     """Prepare one series for discovery.
+
+    ``rig`` supplies the rock's radii to the starting values (contract defaults).
 
     Raises
     ------
@@ -106,17 +97,10 @@ def shot_from_series(series: Series) -> ShotData:
     if len(d) < MIN_ROWS:
         raise SeriesError(f"too few measured rows with t >= 0 ({len(d)}; need {MIN_ROWS})",
                           path=name, where="ok")
-    warnings: list = []
     t = d["t"].to_numpy(float)
     frame = d["frame"].to_numpy(int)
     obs = {c: d[c].to_numpy(float) for c in COORDS}
-    detected = None
-    if series.meta.get("t_stop_translation") is None or series.meta.get("t_stop_rotation") is None:
-        from ..track.stops import detect_stops
-
-        detected = detect_stops(series.data, series.meta.get("fps"))
-    t_tr = _stop(series, "t_stop_translation", detected, warnings)
-    t_rot = _stop(series, "t_stop_rotation", detected, warnings)
+    t_tr, t_rot, warnings = series_stops(series)
     travel = float(np.nanmax(np.hypot(obs["x"] - obs["x"][0], obs["y"] - obs["y"][0])))
     turn = float(np.nanmax(np.abs(obs["theta"] - obs["theta"][0])))
     translates = travel >= PURE_ROTATION_MAX_TRAVEL_M
@@ -128,17 +112,11 @@ def shot_from_series(series: Series) -> ShotData:
         use[c] = (t <= t_stop + REST_MARGIN_S) if (t_stop is not None) else np.ones(t.size, bool)
         if not moving:
             use[c] = np.zeros(t.size, bool)
-        noise[c] = estimate_noise(frame, obs[c], t=t, t_stop=t_stop, name=name, field=c,
-                                  floor=1e-6 if c == "theta" else 1e-5)
         col = "sigma_theta" if c == "theta" else "sigma_xy"
-        s = np.full(t.size, noise[c].sigma)
-        if col in d.columns:
-            w = d[col].to_numpy(float)
-            good = np.isfinite(w) & (w > 0)
-            if good.sum() > 0.5 * w.size:
-                med = float(np.median(w[good]))
-                s = noise[c].sigma * np.where(good, np.clip(w / med, 0.5, 10.0), 1.0)
-        sigma[c] = s
+        noise[c], sigma[c] = row_sigma(
+            frame, obs[c], t=t, t_stop=t_stop, name=name, field=c,
+            weights=d[col].to_numpy(float) if col in d.columns else None,
+            floor=1e-6 if c == "theta" else 1e-5)
     if not any(u.any() for u in use.values()):
         raise SeriesError("the rock neither moves nor turns measurably; nothing to model",
                           path=name)
@@ -148,17 +126,18 @@ def shot_from_series(series: Series) -> ShotData:
                     heading_rad=math.radians(float(heading)) if heading is not None else 0.0,
                     translates=translates, spins=spins, spin=spin,
                     t_stop_translation=t_tr, t_stop_rotation=t_rot, warnings=warnings)
-    shot.start = _starting_values(series, shot)
+    shot.start = _starting_values(series, shot, rig or default_rig())
     return shot
 
 
-def _starting_values(series: Series, shot: ShotData) -> dict:
+def _starting_values(series: Series, shot: ShotData, rig) -> dict:
     """Closed-form fit of the paper (``curltrack.fit``) as a starting point, with crude
     fallbacks when it fails (the discovery fit does not depend on it being good)."""
     from ..errors import CurltrackError
     from ..fit import fit_series
     from ..physics import closed_form as cf
 
+    R, r = rig.inertia_radius_m, rig.band_radius_m
     out = {"v0": 0.0, "omega0": 0.0, "phi_y": 0.0, "phi_theta": 0.0, "a_T": 0.0,
            "skew": 0.0, "alpha_y": 0.01, "alpha_theta": 0.01}
     t_tr = shot.t_stop_translation or float(shot.t[-1])
@@ -170,9 +149,9 @@ def _starting_values(series: Series, shot: ShotData) -> dict:
     if shot.spins:
         th_f = float(np.median(shot.obs["theta"][-5:]))
         out["omega0"] = 2.0 * th_f / t_rot
-        out["alpha_theta"] = cf.alpha_rotation(abs(out["omega0"]), 0.0, t_rot)
+        out["alpha_theta"] = cf.alpha_rotation(abs(out["omega0"]), 0.0, t_rot, R, r)
     try:
-        fr = fit_series(series).values
+        fr = fit_series(series, rig).values
     except CurltrackError:
         return out
     for k in ("v0", "omega0", "phi_y", "alpha_y", "phi_theta", "alpha_theta"):
@@ -183,7 +162,7 @@ def _starting_values(series: Series, shot: ShotData) -> dict:
     if out["phi_theta"] == 0.0 and lam_th is not None and np.isfinite(lam_th) and lam_th != 1:
         out["phi_theta"] = float(cf.phi_from_lambda(lam_th))
         out["alpha_theta"] = float(cf.alpha_rotation(abs(out["omega0"]), out["phi_theta"],
-                                                     fr.get("t_Ftheta") or t_rot))
+                                                     fr.get("t_Ftheta") or t_rot, R, r))
     if fr.get("a_T") is not None and np.isfinite(fr["a_T"]):
         out["a_T"] = abs(float(fr["a_T"]))
     if fr.get("skew_deg") is not None and np.isfinite(fr["skew_deg"]):

@@ -72,6 +72,12 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
         Bad settings, or the rock outside the view for the whole shot.
     VideoError
         The video cannot be written.
+
+    Examples
+    --------
+    >>> from curltrack import ShotModel, default_rig, render, simulate_series
+    >>> truth = render(simulate_series(ShotModel(v0=1.5, omega0=1.5)), default_rig(),
+    ...                "shot.mp4", truth_path="truth.csv", seed=7)  # doctest: +SKIP
     """
     prod = Production(series, rig, config or RenderConfig(), seed)
     video_path = Path(video_path)
@@ -90,7 +96,7 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
     truth = prod.truth()
     if truth_path is not None:
         write_series(truth_path, truth)
-        truth.path = Path(truth_path)
+        truth = replace(truth, path=Path(truth_path))
     stem = video_path.with_suffix("")
     write_text(f"{stem}.rig.toml", replace(rig, fps=prod.fps, source=None).to_toml())
     write_json(f"{stem}.render.json", truth.meta["render"])
