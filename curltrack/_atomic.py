@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
+import signal
+import stat
 import tempfile
+import threading
 from pathlib import Path
 
 from .errors import CurltrackError
@@ -14,16 +18,102 @@ from .errors import CurltrackError
 def check_writable(path) -> None:
     """Raise :class:`CurltrackError` naming ``path`` when it cannot be an output file.
 
-    Only what can be told before writing: ``path`` is an existing directory.
+    Only what can be told before writing: an output only ever replaces a regular file
+    (or a link to one), so an existing directory, device, FIFO or socket is refused, and
+    so is a symbolic-link loop.
     """
     path = Path(path)
-    if path.is_dir():
-        raise CurltrackError("is a directory", path=path)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise CurltrackError("symbolic link loop (the link points, through other "
+                                 "links, back to itself)", path=path) from None
+        if exc.errno == errno.ENOTDIR:
+            raise CurltrackError("a part of the path is not a directory (a file stands "
+                                 "where a folder should be)", path=path) from None
+        raise CurltrackError(f"cannot use as an output ({exc.strerror})", path=path) from None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        if stat.S_ISDIR(st.st_mode):
+            raise CurltrackError("is a directory", path=path)
+        raise CurltrackError(f"is a {_kind(st.st_mode)}, not a regular file: outputs only "
+                             "replace regular files", path=path)
     for parent in path.parents:
         if parent.exists():
             if not parent.is_dir():
                 raise CurltrackError(f"{parent} is not a directory", path=path)
             break
+
+
+def _kind(mode: int) -> str:
+    for test, name in ((stat.S_ISCHR, "character device"), (stat.S_ISBLK, "block device"),
+                       (stat.S_ISFIFO, "FIFO (named pipe)"), (stat.S_ISSOCK, "socket")):
+        if test(mode):
+            return name
+    return "special file"
+
+
+def write_error(exc: OSError, path) -> CurltrackError:
+    """The one-line error for an ``OSError`` met while writing ``path``."""
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return CurltrackError(f"disk full while writing ({exc.strerror}); nothing was "
+                              "written under this name", path=path)
+    return CurltrackError(f"cannot write ({exc.strerror or exc})", path=path)
+
+
+#: Temporary files being written by this process (removed on SIGTERM as on any error).
+_LIVE: set[str] = set()
+
+
+def _on_sigterm(signum, frame):
+    # Unwinds through atomic_path's clean-up like Ctrl-C does (exit status 128 + 15).
+    raise SystemExit(128 + signum)
+
+
+def _install_sigterm() -> None:
+    """SIGTERM ends the process by an exception (so temporary files are removed),
+    when this is the main thread and nobody else handles SIGTERM."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    with contextlib.suppress(ValueError, OSError):
+        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, _on_sigterm)
+
+
+def _temp_prefix(path: Path) -> str:
+    return f".{path.stem}."
+
+
+def clean_stale(path) -> list[Path]:
+    """Remove temporary files of ``path`` left by a process that no longer runs.
+
+    Temporary names are ``.STEM.PID.XXXX.SUFFIX``; one whose PID is not alive was left
+    by a killed run (SIGKILL cannot be caught).
+    """
+    path = Path(path)
+    removed = []
+    with contextlib.suppress(OSError):
+        for p in path.parent.glob(f"{_temp_prefix(path)}*"):
+            rest = p.name[len(_temp_prefix(path)):]
+            pid = rest.split(".", 1)[0]
+            if not pid.isdigit() or int(pid) == os.getpid() or _alive(int(pid)):
+                continue
+            with contextlib.suppress(OSError):
+                p.unlink()
+                removed.append(p)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # e.g. another user's process
+        return True
+    return True
 
 
 @contextlib.contextmanager
@@ -40,15 +130,22 @@ def atomic_path(path, suffix: str | None = None):
     """
     path = Path(path)
     check_writable(path)
+    _install_sigterm()
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix or path.suffix,
-                                   dir=path.parent)
+        clean_stale(path)
+        fd, tmp = tempfile.mkstemp(prefix=f"{_temp_prefix(path)}{os.getpid()}.",
+                                   suffix=suffix or path.suffix, dir=path.parent)
     except OSError as exc:
         raise CurltrackError(f"cannot write here ({exc.strerror})", path=path) from None
     os.close(fd)
+    _LIVE.add(tmp)
     try:
-        yield Path(tmp)
+        try:
+            yield Path(tmp)
+        except OSError as exc:
+            raise write_error(exc, path) from None
+        check_writable(path)  # (a FIFO or device made under the name while we wrote)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual mode
         try:
             os.replace(tmp, path)
@@ -58,6 +155,51 @@ def atomic_path(path, suffix: str | None = None):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+    finally:
+        _LIVE.discard(tmp)
+
+
+def verify_video(tmp, n_frames: int, path) -> None:
+    """Check a just-written video before it is renamed onto ``path``.
+
+    The file is re-opened and must hold ``n_frames`` decodable frames (OpenCV's writer
+    only warns when the disk fills: a truncated file would otherwise take the name).
+
+    Raises
+    ------
+    CurltrackError
+        Naming ``path``: the file is unreadable or holds another number of frames.
+    """
+    import cv2
+
+    why = ""
+    if _free_bytes(tmp) == 0:
+        why = "; the disk is full"
+    cap = cv2.VideoCapture(str(tmp))
+    try:
+        if not cap.isOpened():
+            raise CurltrackError(f"the video could not be written completely (the written "
+                                 f"file cannot be opened{why}); nothing was written under "
+                                 "this name", path=path)
+        got = int(round(cap.get(cv2.CAP_PROP_FRAME_COUNT)))
+        ok = got == n_frames
+        if ok and n_frames > 0:
+            cap.set(cv2.CAP_PROP_POS_FRAMES, n_frames - 1)
+            ok = cap.read()[0]
+    finally:
+        cap.release()
+    if not ok:
+        raise CurltrackError(f"the video could not be written completely ({got} of "
+                             f"{n_frames} frames readable{why}); nothing was written under "
+                             "this name", path=path)
+
+
+def _free_bytes(path) -> int:
+    try:
+        st = os.statvfs(Path(path).parent)
+    except OSError:
+        return -1
+    return st.f_bavail * st.f_frsize
 
 
 def _umask() -> int:

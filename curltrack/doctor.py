@@ -130,7 +130,8 @@ def _sample(image, rig, det):
     from .track.parallax import similarity_fit
 
     out = {"markers_found": None, "grid": None, "grid_msg": "", "scale": np.nan,
-           "rock_px": np.nan, "spacing_px": np.nan, "residual_px": np.nan}
+           "outline_scale": np.nan, "rock_px": np.nan, "spacing_px": np.nan,
+           "residual_px": np.nan}
     mf = det.detect(image)
     out["markers_found"] = mf.found.tolist()
     mask = None
@@ -152,7 +153,11 @@ def _sample(image, rig, det):
     if mf.found.all():
         ice = cal.image_to_ice(mf.xy_px)
         if np.isfinite(ice).all():
-            out["scale"] = float(similarity_fit(L, ice)[2])
+            from .track.outline import outline_radius
+
+            c, _, out["scale"], _ = similarity_fit(L, ice)
+            R = rig.rock_diameter_m / 2
+            out["outline_scale"] = outline_radius(image, cal.H, cal.K, cal.dist, c, R)[0] / R
     return out
 
 
@@ -181,17 +186,17 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
     try:
         info = probe_video(video, fps_override=rig.fps)
     except CurltrackError as exc:
+        if getattr(exc, "where", None) == "[camera].fps":
+            rep.checks.append(Check("fps", "fail", exc.message,
+                                    "remove [camera].fps from the rig or check the video"))
+            return rep
         rep.checks.append(Check("video", "fail", str(exc),
                                 "re-export the video (H.264 mp4) or check the file"))
         return rep
     rep.checks.append(Check(
         "video", "ok", f"{info.codec or '?'} {info.width}x{info.height}, {info.n_frames} "
         f"frames, {info.duration_s:.2f} s", values=asdict(info)))
-    fps_src = "rig [camera].fps" if rig.fps else "container"
-    if rig.fps:
-        cont = probe_video(video, check_end=False).fps
-        if abs(cont - rig.fps) > 0.01 * rig.fps:
-            fps_src += f", the container says {cont:.4g}: check which is right"
+    fps_src = "container" + (", the rig's fps agrees" if rig.fps else "")
     if info.fps < MIN_FPS:
         rep.checks.append(Check("fps", "warn", f"{info.fps:.3g} frames/s ({fps_src})",
                                 f"below {MIN_FPS:g} fps stop times and lambda lose "
@@ -334,10 +339,14 @@ def _geometry_checks(rep, rig, samples):
                                 "grid in the same frame)",
                                 "give [camera].height_m in the rig", {}))
         return
+    from .track.outline import scale_check
     from .track.parallax import ICE_REFRACTIVE_INDEX, layout_scale_mismatch
 
     s = float(np.median(scales))
-    mismatch = layout_scale_mismatch(s, rig)
+    depth = rig.grid_depth_m / ICE_REFRACTIVE_INDEX
+    mismatch = layout_scale_mismatch(s, rig) or scale_check(
+        [x["scale"] for _, x in samples], [x["outline_scale"] for _, x in samples], rig,
+        rig.rock_height_m + depth, depth)
     if mismatch:  # (track stops with this error)
         rep.checks.append(Check("camera_height", "fail", mismatch,
                                 "fix [grid] spacing_x_m/spacing_y_m (and colors) or the "

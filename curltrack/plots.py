@@ -31,9 +31,10 @@ def plot_fit(series, result, path) -> None:
     x is shown deskewed, with the curl fits for lambda = lambda_y (solid) and lambda free
     (dashed); residuals in mm and degrees below each panel.
     """
-    from .fit import _theta_model, deskew, shot_frame_model
+    from .fit import _theta_model, _xy_model, deskew
 
     d = series.measured
+    d = d[d["t"] >= 0]
     t = d["t"].to_numpy(float)
     fig, axes = _figure(2, 3, figsize=(13, 6.5), sharex="col",
                         gridspec_kw={"height_ratios": [3, 1]})
@@ -57,15 +58,19 @@ def plot_fit(series, result, path) -> None:
                      f"λθ = {p['lambda_theta']:.3f}")]
         elif col in "xy" and "xy" in result.fits:
             k = "xy".index(col)
+            frame = result.fits["xy"].params.valuesdict()  # the points' deskew frame
             for name, style in (("xy", "-"), ("xy_free", "--")):
+                if name not in result.fits:  # the lambda-free fit may have failed
+                    continue
                 p = result.fits[name].params.valuesdict()
                 lam = p.get("lambda_x", p["lambda_y"])
                 lbl = f"λ = {lam:.3f}" + (" (free)" if name == "xy_free" else " (λy)")
                 if col == "y":
                     lbl = f"λy = {p['lambda_y']:.3f}"
-                q_own = deskew(p, d["x"], d["y"])[k]
-                fits.append((shot_frame_model(p, tt)[k],
-                             shot_frame_model(p, t)[k] - q_own + q, style, lbl))
+                # each fit's model in measured coordinates, then in the points' frame:
+                # the lambda-free fit has its own psi, x0, y0
+                fits.append((deskew(frame, *_xy_model(p, tt))[k],
+                             deskew(frame, *_xy_model(p, t))[k], style, lbl))
                 if col == "y":
                     break
         ax.plot(t, q, ".", ms=2.5, color="0.35", label="data")

@@ -208,6 +208,8 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
         pos = np.array([[m.x_m, m.y_m] for m in markers])
         if np.ptp(pos, axis=0).max() < 0.02:
             raise RigError("markers must be at least 2 cm apart", where="[[markers]]")
+        diameter = _number(rock, "diameter_m", "rock", required=True)
+        _check_marker_layout(markers, diameter, colors)
         return Rig(
             spacing_x_m=_number(grid, "spacing_x_m", "grid", required=True),
             spacing_y_m=_number(grid, "spacing_y_m", "grid", required=True),
@@ -226,6 +228,75 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
         if exc.path is None and source is not None:
             raise RigError(exc.message, path=source, where=exc.where) from None
         raise
+
+
+#: Smallest colour difference (CIE76 delta E) between a marker and a thread, or two
+#: marker colours meant to differ: closer, the classifier confuses them.
+MIN_COLOR_DELTA_E = 20.0
+
+
+def _lab(hex_color: str) -> np.ndarray:
+    import cv2
+
+    rgb = np.array(parse_color(hex_color), np.float32).reshape(1, 1, 3) / 255.0
+    return cv2.cvtColor(rgb[..., ::-1].copy(), cv2.COLOR_BGR2Lab).reshape(3)
+
+
+def _check_marker_layout(markers, diameter_m: float, thread_colors) -> None:
+    """Markers on the rock, unlike the threads, and a layout whose angle is unambiguous.
+
+    Raises
+    ------
+    RigError
+        A marker beyond the rock's rim; a marker the colour of a thread; same-coloured
+        markers a turn can swap (the angle would be ambiguous by that turn).
+    """
+    import itertools
+
+    for i, m in enumerate(markers):
+        r = float(np.hypot(m.x_m, m.y_m))
+        if r > diameter_m / 2:
+            raise RigError(f"the marker is {r:.3f} m from the rock's axis, outside the rock "
+                           f"([rock].diameter_m = {diameter_m:g} m): positions are in metres "
+                           "from the axis", where=f"[[markers]][{i}]")
+        for j, c in enumerate(thread_colors):
+            de = float(np.linalg.norm(_lab(m.color) - _lab(c)))
+            if de < MIN_COLOR_DELTA_E:
+                raise RigError(f"{m.color} is too close to the thread colour {c} "
+                               f"([grid].colors[{j}], delta E {de:.0f} < "
+                               f"{MIN_COLOR_DELTA_E:g}): markers would be confused with the "
+                               "threads; use a colour unlike the threads'",
+                               where=f"[[markers]][{i}].color")
+    labs = [_lab(m.color) for m in markers]
+    for i, j in itertools.combinations(range(len(markers)), 2):
+        de = float(np.linalg.norm(labs[i] - labs[j]))
+        if 0 < de < MIN_COLOR_DELTA_E:
+            raise RigError(f"{markers[j].color} is too close to marker {i}'s {markers[i].color}"
+                           f" (delta E {de:.0f}): give the markers clearly different colours, "
+                           "or exactly the same one", where=f"[[markers]][{j}].color")
+    if len(markers) > 8:
+        return
+    pos = np.array([[m.x_m, m.y_m] for m in markers])
+    pos = pos - pos.mean(axis=0)
+    groups: dict[str, list[int]] = {}
+    for i, m in enumerate(markers):
+        groups.setdefault(m.color.lower(), []).append(i)
+    for perm in itertools.product(*(itertools.permutations(g) for g in groups.values())):
+        mapping = dict(zip([i for g in groups.values() for i in g],
+                           [i for p in perm for i in p]))
+        if all(k == v for k, v in mapping.items()):
+            continue
+        other = pos[[mapping[i] for i in range(len(markers))]]
+        # a pure turn about the layout's centre taking pos onto other?
+        ang = np.arctan2((pos[:, 0] * other[:, 1] - pos[:, 1] * other[:, 0]).sum(),
+                         (pos * other).sum())
+        c, s = np.cos(ang), np.sin(ang)
+        if np.abs(pos @ np.array([[c, s], [-s, c]]) - other).max() < 0.005:
+            same = [i for i, v in mapping.items() if i != v]
+            raise RigError(f"markers {same} have one colour ({markers[same[0]].color}) and a "
+                           f"turn of {abs(np.degrees(ang)):.0f} deg swaps them: the rock's "
+                           "angle would be ambiguous; give them different colours (or add "
+                           "a marker that breaks the symmetry)", where="[[markers]]")
 
 
 def load_rig(path) -> Rig:

@@ -9,12 +9,14 @@ stop times in the sidecar and optional Gaussian measurement noise.
 from __future__ import annotations
 
 import math
+from dataclasses import asdict
 
 import numpy as np
 import pandas as pd
 
 from .errors import ParameterError
 from .physics.dynamics import MAX_DURATION_S
+from .instrument import Sampling, _check_class, draw_noise
 from .physics.effects import as_effects
 from .series import Series, make_meta
 
@@ -40,7 +42,9 @@ def stop_frame(t: np.ndarray, t_stop: float) -> int | None:
 
 def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
                     noise_rad: float = 0.0, seed: int | None = None,
-                    tail_s: float = 1.0) -> Series:
+                    tail_s: float = 1.0, noise_class: str = "white",
+                    sampling: Sampling | None = None,
+                    theta_measured: bool = True) -> Series:
     """Simulate a shot and sample it like a tracked video.
 
     Parameters
@@ -51,14 +55,23 @@ def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
     effects : sequence of Effect
         Extension terms (paper model only).
     fps : float
-        Frame rate (frames/s); rows at t = frame / fps.
+        Frame rate (frames/s); rows at t = frame / fps (unless ``sampling`` is given).
     noise_m, noise_rad : float
-        1-sigma Gaussian noise added to x, y (m) and theta (rad); the values are also
-        written as the ``sigma_xy`` / ``sigma_theta`` columns when non-zero.
+        1-sigma noise scale of x, y (m) and theta (rad); for white noise the values are
+        also written as the ``sigma_xy`` / ``sigma_theta`` columns when non-zero (other
+        classes leave the instrument's noise to be estimated from the data).
     seed : int, optional
         Seed of the noise generator (numpy default_rng).
     tail_s : float
         Seconds of rest recorded after both motions have stopped.
+    noise_class : {"white", "ar1", "steps", "heavy"}
+        How the instrument errs (:mod:`curltrack.instrument`).
+    sampling : Sampling, optional
+        Irregular sampling (rate, jitter, gaps, first row after release); overrides
+        ``fps``.  Default: regular at ``fps`` from t = 0.
+    theta_measured : bool
+        False: a position-only instrument (theta column empty, ``theta_measured`` false
+        in the sidecar).
 
     Returns
     -------
@@ -82,6 +95,7 @@ def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
     fps = _positive(fps, "fps", allow_zero=False)
     noise_m, noise_rad = _positive(noise_m, "noise_m"), _positive(noise_rad, "noise_rad")
     tail_s = _positive(tail_s, "tail_s")
+    _check_class(noise_class)
     effects = as_effects(effects)
     if hasattr(model, "friction_direction"):  # the segment-level model
         from .physics.segment import simulate_segment
@@ -104,32 +118,55 @@ def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
         raise ParameterError(f"the rock does not stop within {MAX_DURATION_S:.0f} s "
                              f"(friction too small, or a slope it cannot hold)",
                              where="model")
-    n = int(math.floor((end + tail_s) * fps + 1e-9)) + 1
-    t = np.arange(n) / fps
+    rng = np.random.default_rng(seed)
+    if sampling is None or (sampling.regular and sampling.rate_hz == fps):
+        n = int(math.floor((end + tail_s) * fps + 1e-9)) + 1
+        frame, t = np.arange(n), np.arange(n) / fps
+    else:
+        fps = sampling.rate_hz
+        frame, t = sampling.times(end + tail_s, rng)
+        n = t.size
+        if n < 2:
+            raise ParameterError(f"no rows: the first sample ({sampling.start_s:g} s) is "
+                                 f"after the end of the shot", where="start_s")
     traj = sample(t)
     traj = traj if isinstance(traj, dict) else traj.__dict__
-    rng = np.random.default_rng(seed)
     x, y, theta = (np.array(traj[k], dtype=float) for k in ("x", "y", "theta"))
-    if noise_m > 0:
-        x += rng.normal(0.0, noise_m, n)
-        y += rng.normal(0.0, noise_m, n)
-    if noise_rad > 0:
-        theta += rng.normal(0.0, noise_rad, n)
-    data = pd.DataFrame({"frame": np.arange(n), "t": t, "x": x, "y": y, "theta": theta,
+    if noise_class == "white":  # the draw order of earlier versions: same series per seed
+        if noise_m > 0:
+            x += rng.normal(0.0, noise_m, n)
+            y += rng.normal(0.0, noise_m, n)
+        if noise_rad > 0:
+            theta += rng.normal(0.0, noise_rad, n)
+    else:
+        x += draw_noise(noise_class, t, noise_m, rng)
+        y += draw_noise(noise_class, t, noise_m, rng)
+        theta += draw_noise(noise_class, t, noise_rad, rng)
+    if not theta_measured:
+        theta[:] = np.nan
+    data = pd.DataFrame({"frame": frame, "t": t, "x": x, "y": y, "theta": theta,
                          "ok": np.ones(n, dtype=int)})
-    if noise_m > 0:
+    if noise_m > 0 and noise_class == "white":
         data["sigma_xy"] = noise_m
-    if noise_rad > 0:
+    if noise_rad > 0 and noise_class == "white" and theta_measured:
         data["sigma_theta"] = noise_rad
+    extra = {} if theta_measured else {"theta_measured": False}
     meta = make_meta(
-        fps, n,
+        fps, int(frame[-1]) + 1,
         t_stop_translation=float(stops[0]),
         t_stop_rotation=float(stops[1]),
-        stop_frame_translation=stop_frame(t, stops[0]),
-        stop_frame_rotation=stop_frame(t, stops[1]),
+        stop_frame_translation=_stop_row(frame, t, stops[0]),
+        stop_frame_rotation=_stop_row(frame, t, stops[1]),
         simulation={"model": kind, "params": model.to_dict(),
                     "effects": [e.to_dict() for e in effects],
                     "noise_m": noise_m, "noise_rad": noise_rad, "seed": seed,
-                    "tail_s": tail_s},
+                    "tail_s": tail_s, "noise_class": noise_class,
+                    **({} if sampling is None else {"sampling": asdict(sampling)})},
+        **extra,
     )
     return Series(data, meta, None)
+
+
+def _stop_row(frame, t, t_stop):
+    i = stop_frame(t, t_stop)
+    return None if i is None else int(frame[i])

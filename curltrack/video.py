@@ -5,8 +5,9 @@ Conventions
 * ``Frame.index`` is the 0-based index of the frame in the file (decode order).
 * ``Frame.t`` (s) is the frame's presentation time from the container's timestamps,
   relative to the first frame yielded at index ``start`` (so 29.97 fps and variable
-  frame rates are honoured).  With an fps override (the rig's ``[camera].fps``) the time
-  is ``(index - start) / fps`` instead.
+  frame rates are honoured), always.  The rig's ``[camera].fps`` is only used when the
+  container gives no frame rate; one that disagrees with the container's by more than
+  :data:`FPS_TOLERANCE` is an error, never a silent override.
 * ``Frame.image`` is BGR uint8, shape (height, width, 3).
 
 Still images (PNG, JPEG, ...) are accepted by :func:`read_frame` so that ``calibrate``
@@ -28,6 +29,10 @@ from .errors import VideoError
 # FFmpeg's own log lines (e.g. "moov atom not found") must not reach the user's terminal:
 # errors are reported once, as a VideoError.  Read when OpenCV first opens a video.
 os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+
+#: Largest relative difference between the rig's ``[camera].fps`` and the container's
+#: frame rate (29.97 vs 30 is 0.1 %); beyond it every time would be scaled wrong.
+FPS_TOLERANCE = 0.005
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 
@@ -83,6 +88,30 @@ def decoder_threads() -> int:
                          where="environment") from None
 
 
+def _usable_fps(fps: float) -> bool:
+    return bool(np.isfinite(fps) and 0 < fps <= 1000)
+
+
+def check_rig_fps(container_fps: float, rig_fps: float | None, path=None) -> None:
+    """Raise :class:`VideoError` when the rig's fps contradicts the container's.
+
+    Parameters
+    ----------
+    container_fps : float
+        Frames per second announced by the container (ignored when unusable).
+    rig_fps : float or None
+        The rig's ``[camera].fps``.
+    """
+    if rig_fps is None or not _usable_fps(container_fps):
+        return
+    if abs(rig_fps - container_fps) > FPS_TOLERANCE * container_fps:
+        raise VideoError(
+            f"the rig's fps = {rig_fps:g} disagrees with the video's {container_fps:.4g} "
+            f"frames/s (by {abs(rig_fps / container_fps - 1) * 100:.1f} %): every time "
+            "would be scaled wrong; remove [camera].fps from the rig (time comes from the "
+            "video's timestamps) or check the video", path=path, where="[camera].fps")
+
+
 def _open(path):
     import cv2
 
@@ -107,7 +136,8 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
     ----------
     path : str or Path
     fps_override : float, optional
-        Frames per second to use instead of the container's (rig ``[camera].fps``).
+        The rig's ``[camera].fps``: used only when the container gives no frame rate,
+        and checked against it otherwise (:func:`check_rig_fps`).
     check_end : bool
         Also decode the last frame, so a truncated file is reported here rather than
         halfway through tracking.
@@ -143,8 +173,10 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
         if fps_override is not None:
             if not np.isfinite(fps_override) or fps_override <= 0:
                 raise VideoError(f"invalid fps override {fps_override!r}", path=path)
-            fps = float(fps_override)
-        elif not np.isfinite(fps) or fps <= 0 or fps > 1000:
+            check_rig_fps(fps, fps_override, path)
+            if not _usable_fps(fps):
+                fps = float(fps_override)
+        elif not _usable_fps(fps):
             raise VideoError(f"container gives no usable frame rate ({fps!r}); set "
                              "[camera].fps in the rig", path=path)
         if check_end and n > 1:
@@ -179,8 +211,9 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
     exclude : iterable of int
         Frame indices to skip (not yielded; the caller decides whether to record them).
     fps_override : float, optional
-        Use ``(index - start) / fps_override`` as the time instead of the container's
-        timestamps.
+        The rig's ``[camera].fps``: the time is ``(index - start) / fps_override`` only
+        when the container gives no frame rate (checked by :func:`check_rig_fps`
+        otherwise).
 
     Raises
     ------
@@ -200,6 +233,11 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
     try:
         n = int(round(cap.get(cv2.CAP_PROP_FRAME_COUNT)))
         fps = float(cap.get(cv2.CAP_PROP_FPS))
+        check_rig_fps(fps, fps_override, path)
+        if _usable_fps(fps):
+            fps_override = None  # time from the container, always
+        elif fps_override is not None:
+            fps = float(fps_override)
         if n > 0 and start >= n:
             raise VideoError(f"start frame {start} is beyond the last frame ({n - 1})",
                              path=path)

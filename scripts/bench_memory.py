@@ -13,6 +13,7 @@ Usage::
     scripts/bench_memory.py                       # 0.5 and 2 minutes at 1920x1080
     scripts/bench_memory.py --minutes 1 10        # the 10-minute case (slow: ~real time)
     scripts/bench_memory.py --size 960x540 --minutes 0.25 1 --json bench_memory.json
+    scripts/bench_memory.py --discover            # discover on 1e5 rows and a 60 s shot
 
 Prints one line per length (frames, wall s, tracked fps, peak RSS MB, and the RSS at 30 %
 and 90 % of the run) and the growth of the peak RSS per extra minute of video; exit
@@ -92,7 +93,14 @@ runpy.run_module('curltrack', run_name='__main__')
 
 
 def track_peak_rss(video: Path, rig: Path, out_csv: Path, every_s: float = 0.5) -> dict:
-    """Run `curltrack track` in a child; its wall time, peak RSS and RSS over the run (MB).
+    """Run `curltrack track` in a child; its wall time, peak RSS and RSS over the run (MB)
+    (see :func:`command_peak_rss`)."""
+    return command_peak_rss(["track", str(video), "--rig", str(rig), "-o", str(out_csv),
+                             "--no-progress", "-q"], every_s)
+
+
+def command_peak_rss(args, every_s: float = 0.5) -> dict:
+    """Run ``curltrack ARGS`` in a child; its wall time, peak RSS and RSS over the run (MB).
 
     ``peak_rss_mb`` is the child's own high-water mark (VmHWM; where the system has
     none, the largest sampled RSS).  The RSS is also sampled every ``every_s``;
@@ -104,8 +112,7 @@ def track_peak_rss(video: Path, rig: Path, out_csv: Path, every_s: float = 0.5) 
     import numpy as np
     import psutil
 
-    cmd = [sys.executable, "-c", _CHILD, "track", str(video), "--rig", str(rig),
-           "-o", str(out_csv), "--no-progress", "-q"]
+    cmd = [sys.executable, "-c", _CHILD, *map(str, args)]
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     samples = []
@@ -128,7 +135,7 @@ def track_peak_rss(video: Path, rig: Path, out_csv: Path, every_s: float = 0.5) 
     err = proc.stderr.read().decode(errors="replace").strip()
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode != 0:
-        raise SystemExit(f"track failed on {video}: {err}")
+        raise SystemExit(f"curltrack {' '.join(map(str, args))} failed: {err}")
     ts = np.array([t for t, _ in samples])
     rss = np.array([r for _, r in samples])
     hwm = [int(line.split()[1]) for line in err.splitlines()
@@ -192,6 +199,41 @@ def memory_vs_length(minutes=(0.5, 2.0), size=(1920, 1080), fps: float = 30.0,
             "limit_mb_per_min": max_growth_mb_per_min, "ok": ok}
 
 
+#: Stated bound of discover's peak memory (MB), whatever the input (see
+#: curltrack.sanity.DISCOVER_MAX_ROWS).
+DISCOVER_LIMIT_MB = 2048.0
+
+
+def discover_memory(workdir: Path | None = None, log=print) -> dict:
+    """Peak RSS of ``curltrack discover`` on 1e5 rows (a 20 s draw at 5 kHz) and on a
+    60 s shot (30 fps, the rock at rest after its stop), each in a child process."""
+    from curltrack.physics.shot import ShotModel
+    from curltrack.series import write_series
+    from curltrack.simulate import simulate_series
+
+    cases = {"1e5 rows": dict(fps=5000.0, tail_s=0.0), "60 s shot": dict(fps=30.0)}
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(workdir) if workdir else Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        for name, kw in cases.items():
+            model = ShotModel(v0=1.6, omega0=1.5)
+            if name == "60 s shot":
+                sim0 = simulate_series(model, fps=kw["fps"], tail_s=0.0)
+                kw["tail_s"] = 60.0 - float(sim0.data["t"].iloc[-1])
+            sim = simulate_series(model, noise_m=0.001, noise_rad=0.003, seed=1, **kw)
+            shot = work / f"{name.replace(' ', '_')}.csv"
+            write_series(shot, sim)
+            r = command_peak_rss(["discover", shot, "-o", shot.with_suffix(".report.json")])
+            r.update(case=name, rows=len(sim.data),
+                     duration_s=float(sim.data["t"].iloc[-1]))
+            rows.append(r)
+            log(f"discover {name:10s} {r['rows']:7d} rows  {r['duration_s']:5.1f} s  "
+                f"{r['wall_s']:6.1f} s wall  peak RSS {r['peak_rss_mb']:7.1f} MB", flush=True)
+    ok = all(r["peak_rss_mb"] <= DISCOVER_LIMIT_MB for r in rows)
+    return {"runs": rows, "limit_mb": DISCOVER_LIMIT_MB, "ok": ok}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--minutes", type=float, nargs="+", default=[0.5, 2.0],
@@ -202,7 +244,14 @@ def main(argv=None) -> int:
                     help="Keep the videos here (default: a temporary folder).")
     ap.add_argument("--json", type=Path, default=None, help="Write the results as JSON.")
     ap.add_argument("--max-growth-mb-per-min", type=float, default=8.0)
+    ap.add_argument("--discover", action="store_true",
+                    help="Measure discover's peak memory (1e5 rows; a 60 s shot) instead.")
     args = ap.parse_args(argv)
+    if args.discover:
+        res = discover_memory(args.workdir)
+        if args.json:
+            args.json.write_text(json.dumps(res, indent=2))
+        return 0 if res["ok"] else 1
     if len(args.minutes) < 2:
         ap.error("give at least two lengths")
     size = tuple(int(v) for v in args.size.lower().split("x"))

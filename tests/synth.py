@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from curltrack.fit import shot_frame_model
 from curltrack.physics import closed_form as cf
 from curltrack.series import Series, make_meta
 
@@ -17,8 +18,9 @@ def closed_form_series(lam_theta=1.455, lam_y=1.897, t_F=24.0, theta_F=2.7 * 2 *
     t_Ftheta = t_F if t_Ftheta is None else t_Ftheta
     t = np.arange(0.0, max(t_F, t_Ftheta) + tail_s, 1.0 / fps)
     th = cf.decel_position(t, theta_F, lam_theta, t_Ftheta)
-    Y = cf.decel_position(t, y_F, lam_y, t_F)
-    X = cf.curl_position(t, a_T, lam_y if lam_x is None else lam_x, t_F)
+    # the fit's translation model: the paper's forms, y shortened by the curl's heading
+    X, Y = shot_frame_model({"a_T": a_T, "lambda_y": lam_y, "y_F": y_F, "t_FS": t_F,
+                             "lambda_x": lam_y if lam_x is None else lam_x}, t)
     ps = np.radians(skew_deg)
     x = np.cos(ps) * X - np.sin(ps) * Y
     y = np.sin(ps) * X + np.cos(ps) * Y

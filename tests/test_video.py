@@ -37,7 +37,11 @@ def test_probe_reports_the_container(clip):
     assert (info.n_frames, info.width, info.height) == (n, 160, 96)
     assert info.fps == pytest.approx(fps, rel=1e-4)
     assert info.codec and info.duration_s == pytest.approx(n / fps, rel=1e-4)
-    assert probe_video(path, fps_override=50.0).fps == 50.0
+    # the rig's fps never overrides the container's: agreeing (<= 0.5 %) it is not used,
+    # disagreeing it is an error naming the rig's field
+    assert probe_video(path, fps_override=fps * 1.003).fps == pytest.approx(fps, rel=1e-4)
+    with pytest.raises(VideoError, match=r"\[camera\]\.fps"):
+        probe_video(path, fps_override=50.0)
 
 
 def test_frames_have_exact_indices_and_container_times(clip):
@@ -55,8 +59,10 @@ def test_start_end_exclude_and_fps_override(clip):
     # t = 0 at the start frame, from the container's clock
     np.testing.assert_allclose([f.t for f in frames], (np.array([5, 6, 9, 10, 11]) - 5) / fps,
                                atol=1e-6)
-    over = list(iter_frames(path, start=2, end=6, fps_override=10.0))
-    np.testing.assert_allclose([f.t for f in over], [0.0, 0.1, 0.2, 0.3])
+    over = list(iter_frames(path, start=2, end=6, fps_override=fps * 0.997))
+    np.testing.assert_allclose([f.t for f in over], np.arange(4) / fps, atol=1e-6)
+    with pytest.raises(VideoError, match=r"\[camera\]\.fps"):
+        list(iter_frames(path, start=2, end=6, fps_override=10.0))
     assert _identity(read_frame(path, 9)) == 9
     assert [_identity(f.image) for f in frames] == [5, 6, 9, 10, 11]
 

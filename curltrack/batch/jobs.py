@@ -12,6 +12,7 @@ import hashlib
 import json
 import os
 import re
+from collections import Counter
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -72,6 +73,9 @@ class ShotJob:
         Frame range to track (release frame .. last frame); None = the whole video.
     shot_index : int or None
         Position of the shot in its video when the video was split (1-based).
+    id_note : str or None
+        Why ``shot_id`` is not the plain name of the file (two files' names mapped to
+        one id); the campaign table's ``shot_id_note``.
     """
 
     shot_id: str
@@ -80,6 +84,7 @@ class ShotJob:
     start_frame: int | None = None
     end_frame: int | None = None
     shot_index: int | None = None
+    id_note: str | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -115,16 +120,26 @@ def video_ids(directory, videos) -> dict[Path, str]:
     """A unique, filesystem-safe id for each video: its relative path without extension.
 
     ``a/b.mp4`` -> ``a__b``; when two videos differ only by extension the extension is
-    kept (``b.mp4`` -> ``b_mp4``).
+    kept (``b.mp4`` -> ``b_mp4``).  Names that still map to one id (``a b.mp4`` and
+    ``a_b.mp4``), also when only their case differs (one folder on a case-insensitive
+    file system), get a few hex digits of their relative path's hash: unique by
+    construction, and the same on every run.
     """
     directory = Path(directory)
     rel = {v: v.relative_to(directory) for v in videos}
     stems = {v: "__".join(_safe(p) for p in r.with_suffix("").parts) for v, r in rel.items()}
-    counts: dict[str, int] = {}
-    for s in stems.values():
-        counts[s] = counts.get(s, 0) + 1
-    return {v: (s if counts[s] == 1 else s + "_" + _safe(rel[v].suffix.lstrip(".")))
-            for v, s in stems.items()}
+    counts = Counter(stems.values())
+    ids = {v: (s if counts[s] == 1 else s + "_" + _safe(rel[v].suffix.lstrip(".")))
+           for v, s in stems.items()}
+    for n in (6, 12, 64):
+        counts = Counter(i.lower() for i in ids.values())
+        clash = [v for v, i in ids.items() if counts[i.lower()] > 1]
+        if not clash:
+            break
+        for v in clash:
+            digest = hashlib.sha256(rel[v].as_posix().encode()).hexdigest()
+            ids[v] = f"{ids[v] if n == 6 else ids[v].rsplit('_', 1)[0]}_{digest[:n]}"
+    return ids
 
 
 def plan_jobs(directory, videos=None) -> list[ShotJob]:
@@ -132,12 +147,24 @@ def plan_jobs(directory, videos=None) -> list[ShotJob]:
     directory = Path(directory).resolve()
     videos = [Path(v).resolve() for v in (find_videos(directory) if videos is None else videos)]
     ids = video_ids(directory, videos)
-    return [ShotJob(ids[v], str(v), v.relative_to(directory).as_posix()) for v in videos]
+    plain = {v: video_ids(directory, [v])[v] for v in videos}
+    jobs = []
+    for v in videos:
+        note = None
+        if ids[v] != plain[v]:
+            others = sorted(w.relative_to(directory).as_posix() for w in videos
+                            if w != v and plain[w].lower() == plain[v].lower())
+            note = (f"{plain[v]!r} is also the name of {', '.join(map(repr, others))}: "
+                    "this file's id carries its path's hash")
+        jobs.append(ShotJob(ids[v], str(v), v.relative_to(directory).as_posix(),
+                            id_note=note))
+    return jobs
 
 
 def split_jobs(job: ShotJob, segments) -> list[ShotJob]:
     """The shots of a split video: ``segments`` is a sequence of (start, end) frames."""
-    return [ShotJob(f"{job.shot_id}__shot{i:02d}", job.video, job.file, int(s), int(e), i)
+    return [ShotJob(f"{job.shot_id}__shot{i:02d}", job.video, job.file, int(s), int(e), i,
+                    job.id_note)
             for i, (s, e) in enumerate(segments, start=1)]
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -93,11 +94,7 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
     from distributed import Client, LocalCluster
 
     if scheduler:
-        try:
-            client = Client(scheduler, timeout=f"{timeout_s}s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError(f"cannot connect to the Dask scheduler ({exc})".splitlines()[0],
-                             path=scheduler) from None
+        client = _connect(scheduler, timeout_s)
         with client:
             yield client
         return
@@ -110,10 +107,88 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
         yield client
 
 
+#: The lock file of a batch output folder (held while a batch writes there).
+LOCK_NAME = ".curltrack-batch.lock"
+
+
+@contextlib.contextmanager
+def folder_lock(outdir):
+    """Hold ``OUTDIR/.curltrack-batch.lock`` (an ``flock``, released when the process
+    ends, even when killed): two batches writing one folder would race on its shots
+    and its table.
+
+    Raises
+    ------
+    InputError
+        Another batch holds the folder (its PID and start time named).
+    """
+    import fcntl
+
+    path = Path(outdir) / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise InputError(f"cannot lock the output folder ({exc.strerror})",
+                         path=outdir) from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "?"
+            raise InputError(f"another batch is writing to this folder ({holder}); wait for "
+                             "it to finish or choose another -o", path=outdir) from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"pid {os.getpid()}, started "
+                      f"{time.strftime('%Y-%m-%d %H:%M:%S')}".encode(), 0)
+        yield path
+    finally:
+        os.close(fd)  # (releases the lock)
+
+
+def _connect(scheduler: str, timeout_s: float):
+    """``Client(scheduler)`` with a hard time limit and a message naming the cause.
+
+    distributed's own ``timeout`` bounds the TCP connection only: a port that accepts
+    and never answers (a firewall's tarpit, a stopped process) hangs the handshake for
+    minutes, and one that answers in another protocol makes it allocate what the garbage
+    announces ("out of memory").
+    """
+    from distributed import Client
+
+    box: dict = {}
+
+    def attempt():
+        try:
+            box["client"] = Client(scheduler, timeout=f"{timeout_s}s")
+        except BaseException as exc:  # handed to the caller's thread
+            box["error"] = exc
+
+    th = threading.Thread(target=attempt, name="curltrack-connect", daemon=True)
+    th.start()
+    th.join(timeout_s + 2.0)
+    if th.is_alive():
+        raise InputError(f"the scheduler accepts connections but did not answer within "
+                         f"{timeout_s + 2.0:g} s: is a Dask scheduler listening on that port "
+                         "(not its dashboard or another service)?", path=scheduler)
+    exc = box.get("error")
+    if isinstance(exc, (MemoryError, ValueError, TypeError, KeyError)) or (
+            exc is not None and type(exc).__module__.startswith(("msgpack", "struct"))):
+        raise InputError("the scheduler answered with something that is not the Dask "
+                         f"protocol ({type(exc).__name__}): is a Dask scheduler listening on "
+                         "that port (not its dashboard or another service)?", path=scheduler)
+    if isinstance(exc, (OSError, TimeoutError)):
+        raise InputError(f"cannot connect to the Dask scheduler ({exc})".splitlines()[0],
+                         path=scheduler)
+    if exc is not None:
+        raise exc
+    return box["client"]
+
+
 def run_batch(directory, rig, outdir, *, workers: int | None = None,
               scheduler: str | None = None, client=None,
               options: BatchOptions = BatchOptions(), report: bool = False,
-              progress: bool = False, pipeline=None) -> BatchSummary:
+              progress: bool = False, pipeline=None,
+              scheduler_timeout_s: float = 15.0) -> BatchSummary:
     """Process every video in ``directory`` in parallel and write the campaign table.
 
     Parameters
@@ -140,6 +215,8 @@ def run_batch(directory, rig, outdir, *, workers: int | None = None,
         Show a progress bar on stderr.
     pipeline : callable, optional
         Replaces the per-shot work (see :func:`~curltrack.batch.shot.process_shot`).
+    scheduler_timeout_s : float
+        Longest wait for ``scheduler`` to answer (s).
 
     Returns
     -------
@@ -167,11 +244,12 @@ def run_batch(directory, rig, outdir, *, workers: int | None = None,
         raise InputError("no videos found in the folder", path=directory)
     metadata = read_shot_metadata(directory)
     outdir.mkdir(parents=True, exist_ok=True)
-    if client is not None:
-        records = _run(client, jobs, rig, outdir, options, progress, pipeline)
-    else:
-        with open_client(workers, scheduler) as cl:
-            records = _run(cl, jobs, rig, outdir, options, progress, pipeline)
+    with folder_lock(outdir):
+        if client is not None:
+            records = _run(client, jobs, rig, outdir, options, progress, pipeline)
+        else:
+            with open_client(workers, scheduler, scheduler_timeout_s) as cl:
+                records = _run(cl, jobs, rig, outdir, options, progress, pipeline)
     records.sort(key=lambda r: r["shot"]["shot_id"])
     summary = BatchSummary(records=records)
     for r in records:

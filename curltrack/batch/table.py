@@ -81,6 +81,8 @@ def flatten_record(record: dict) -> dict:
     """One table row from a shot's record (see :func:`curltrack.batch.shot.process_shot`)."""
     shot = record.get("shot", {})
     row = {k: shot.get(k) for k in SHOT_COLUMNS}
+    if shot.get("id_note"):  # two files' names map to one id (see jobs.video_ids)
+        row["shot_id_note"] = shot["id_note"]
     row.update({k: record.get(k) for k in STATUS_COLUMNS})
     for key, value in _flat(record.get("fit") or {}).items():
         row[key if key not in row else f"fit_{key}"] = value

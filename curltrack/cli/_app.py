@@ -45,7 +45,8 @@ def check_outputs(inputs, outputs) -> None:
     Raises
     ------
     CurltrackError
-        ``OUT: OPTION: would overwrite the input FILE``, ``OUT: is a directory``, or
+        ``OUT: OPTION: would overwrite the input FILE``, ``OUT: OPTION: is a directory``
+        (or a device, FIFO, symbolic-link loop), or
         ``OUT: OPTION: the same file as OTHER``.
     """
     from .._atomic import check_writable
@@ -57,24 +58,30 @@ def check_outputs(inputs, outputs) -> None:
             continue
         out = Path(out)
         for inp in ins:
-            if _same_file(out, inp):
+            if same_file(out, inp):
                 raise CurltrackError(f"would overwrite the input {inp}", path=out, where=option)
-        check_writable(out)
+        try:
+            check_writable(out)
+        except CurltrackError as exc:
+            raise CurltrackError(exc.message, path=out, where=option) from None
         for other_option, other in seen:
-            if _same_file(out, other):
+            if same_file(out, other):
                 raise CurltrackError(f"the same file as {other_option} {other}", path=out,
                                      where=option)
         seen.append((option, out))
 
 
-def _same_file(a: Path, b: Path) -> bool:
+def same_file(a: Path, b: Path) -> bool:
     """Same file: one inode (hard or symbolic links) or the same resolved path."""
     try:
         if os.path.samefile(a, b):
             return True
-    except OSError:  # one does not exist (yet)
+    except OSError:  # one does not exist (yet), or a symbolic-link loop
         pass
-    return a.resolve() == b.resolve()
+    try:
+        return a.resolve() == b.resolve()
+    except (OSError, RuntimeError):  # a link loop: check_writable names it
+        return False
 
 
 def guarded(func):

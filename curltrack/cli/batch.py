@@ -23,6 +23,9 @@ def batch(
     scheduler: str = typer.Option(None, "--scheduler", help="Address of a running Dask "
                                   "scheduler (tcp://host:8786) instead of a local cluster; "
                                   "workers must see the same paths."),
+    scheduler_timeout: float = typer.Option(15.0, "--scheduler-timeout", min=0.1,
+                                            help="Longest wait for --scheduler to answer "
+                                            "(s)."),
     split: bool = typer.Option(False, "--split", help="Find the shots in each video "
                                "(rest -> release -> stop) and process each on its own."),
     report: bool = typer.Option(True, "--report/--no-report", help="Write the campaign "
@@ -52,7 +55,8 @@ def batch(
     options = BatchOptions(fixed_stop=fixed_stop, discover=discover, split=split,
                            retry_failed=retry_failed, plots=plots)
     summary = run_batch(directory, rig, output, workers=workers, scheduler=scheduler,
-                        options=options, report=report, progress=not quiet)
+                        options=options, report=report, progress=not quiet,
+                        scheduler_timeout_s=scheduler_timeout)
     if not quiet:
         typer.echo(str(summary), err=True)
         typer.echo(f"wrote {summary.table_path} and {summary.csv_path}"

@@ -34,6 +34,14 @@ def discover(
     from ..rig import load_rig
     from ..series import sidecar_path
 
+    from ..errors import InputError
+    from ._app import same_file
+
+    for i, a in enumerate(shots):
+        twice = next((b for b in shots[:i] if same_file(a, b)), None)
+        if twice is not None:
+            raise InputError(f"the same shot given twice (also as {twice}): each shot "
+                             "would count as two", path=a)
     check_outputs([*shots, *(sidecar_path(p) for p in shots), rig],
                   [("-o", output), ("--plot", plot)])
     report = run([str(p) for p in shots], baseline=baseline.value, seed=seed,

@@ -26,6 +26,13 @@ Effects: --effect NAME followed by its --param KEY=VALUE (names: {', '.join(EFFE
 Example:
 --effect ice_slope --param slope_x_mm_per_m=1.5 --effect pick --param t_s=8
 --param domega_rad_per_s=-0.5
+
+Other instruments: --noise-class white|ar1|steps|heavy (how the errors behave; --noise-m
+and --noise-rad set their scale), --fps 10 --jitter-s 0.003 --gaps 2 --start-s 1.0
+(irregular sampling, first row 1 s after release), --position-only (theta not measured).
+A session: --shots 5 writes SIM_1.csv ... SIM_5.csv, shots of both spins with v0 and
+|omega0| within +-15 % / +-50 % of the given ones and alpha spread by --alpha-spread
+(relative 1 sigma, default 0.05) around one sheet's friction.
 """
 
 
@@ -92,6 +99,17 @@ def simulate(
     rig: Optional[Path] = typer.Option(None, "--rig", help="Rig TOML (R, r, fps)."),
     fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate (default: rig or 30)."),
     tail_s: float = typer.Option(1.0, "--tail-s", help="Rest recorded after the stop (s)."),
+    noise_class: str = typer.Option("white", "--noise-class",
+                                    help="white | ar1 | steps | heavy."),
+    jitter_s: float = typer.Option(0.0, "--jitter-s", help="Timestamp jitter, 1 sigma (s)."),
+    gaps: int = typer.Option(0, "--gaps", help="Number of gaps with no rows."),
+    max_gap_s: float = typer.Option(2.0, "--max-gap-s", help="Longest gap (s)."),
+    start_s: float = typer.Option(0.0, "--start-s", help="First row after release (s)."),
+    position_only: bool = typer.Option(False, "--position-only",
+                                       help="Theta not measured (empty column)."),
+    shots: int = typer.Option(1, "--shots", help="Shots of one session (SIM_1.csv ...)."),
+    alpha_spread: float = typer.Option(0.05, "--alpha-spread",
+                                       help="Session: relative 1 sigma spread of alpha."),
     model: str = typer.Option("paper", "--model", help="paper | segment."),
     friction_direction: str = typer.Option(
         "film", "--friction-direction", help="segment model: ice | film."),
@@ -103,9 +121,20 @@ def simulate(
     from ..errors import ParameterError
     from ..rig import default_rig, load_rig
     from ..series import sidecar_path, write_series
+    from ..instrument import NOISE_CLASSES, Sampling, session_models
     from ..simulate import simulate_series
 
-    check_outputs([rig], [("-o", output), ("-o (its sidecar)", sidecar_path(output))])
+    outputs = [output] if shots == 1 else \
+        [output.with_name(f"{output.stem}_{i + 1}{output.suffix}") for i in range(shots)]
+    check_outputs([rig], [pair for o in outputs
+                          for pair in (("-o", o), ("-o (its sidecar)", sidecar_path(o)))])
+    if shots < 1:
+        _usage(f"expected >= 1, got {shots}", param_hint="--shots")
+    if shots > 1 and model != "paper":
+        _usage("sessions use the paper model", param_hint="--shots")
+    if noise_class not in NOISE_CLASSES:
+        _usage(f"expected one of {', '.join(NOISE_CLASSES)}, got {noise_class!r}",
+               param_hint="--noise-class")
     if model not in ("paper", "segment"):
         _usage(f"expected paper or segment, got {model!r}", param_hint="--model")
     if friction_direction not in ("ice", "film"):
@@ -140,10 +169,21 @@ def simulate(
                                     asymmetry=asymmetry).items() if v is not None}
         shot = SegmentModel.from_rig(the_rig, v0=v0, omega0=omega0,
                                      friction_direction=friction_direction, **kw)
-    series = simulate_series(shot, effects, fps=fps, noise_m=noise_m, noise_rad=noise_rad,
-                             seed=seed, tail_s=tail_s)
-    side = write_series(output, series)
-    m = series.meta
-    typer.echo(f"wrote {output} ({m['n_frames']} frames at {fps:g} fps; stops: translation "
-               f"{m['t_stop_translation']:.3f} s, rotation {m['t_stop_rotation']:.3f} s) "
-               f"and {side}")
+    sampling = Sampling(rate_hz=fps, jitter_s=jitter_s, start_s=start_s, n_gaps=gaps,
+                        max_gap_s=max_gap_s)
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    models = [shot] if shots == 1 else session_models(
+        shot, shots, rng, alpha_spread=alpha_spread,
+        v0_range=(0.85 * v0, 1.15 * v0), omega0_range=(0.5 * abs(omega0), 1.5 * abs(omega0)))
+    seeds = [seed] if shots == 1 else [int(s) for s in rng.integers(0, 2**31, shots)]
+    for out, one, sd in zip(outputs, models, seeds):
+        series = simulate_series(one, effects, fps=fps, noise_m=noise_m, noise_rad=noise_rad,
+                                 seed=sd, tail_s=tail_s, noise_class=noise_class,
+                                 sampling=sampling, theta_measured=not position_only)
+        side = write_series(out, series)
+        m = series.meta
+        typer.echo(f"wrote {out} ({len(series.data)} rows at {fps:g} Hz; stops: translation "
+                   f"{m['t_stop_translation']:.3f} s, rotation {m['t_stop_rotation']:.3f} s) "
+                   f"and {side}")

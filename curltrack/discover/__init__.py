@@ -27,6 +27,7 @@ no supported candidate: ``unexplained`` if the baseline residuals are structured
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -37,8 +38,8 @@ from .candidates import build_candidates, untested
 from .model import JointModel
 from .results import DiscoveryReport, Finding
 from .residuals import structure_tests
-from .search import (NONLINEAR_MARGIN, folds_shot, folds_time, heldout, refine_candidate,
-                     score_candidate, segments_of)
+from .search import (NONLINEAR_MARGIN, block_lengths, folds_shot, folds_time, heldout,
+                     refine_candidate, rescore, residual_noise, score_candidate, segments_of)
 from .shots import shot_from_series
 
 __all__ = ["discover", "write_report", "DiscoveryReport", "Finding"]
@@ -89,6 +90,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     >>> rep.verdict, rep.findings[0].params["factor"]              # doctest: +SKIP
     ('friction_patch', 1.29...)
     """
+    from ..sanity import bound_rows, check_units
     from ..series import Series, read_series
 
     if baseline not in ("paper", "dry"):
@@ -98,14 +100,30 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     if not items:
         raise InputError("no shots given")
     sers = [s if isinstance(s, Series) else read_series(Path(s)) for s in items]
+    if baseline == "dry":
+        for s in sers:
+            if not s.theta_measured:
+                raise InputError("every theta is empty (a position-only series): "
+                                 "--baseline dry fixes the friction laws of translation "
+                                 "and rotation and needs the rotation; use --baseline "
+                                 "paper", path=s.name, where="theta, rows 2-"
+                                 f"{len(s.data) + 1}")
+    unit_warnings = [w for s in sers for w in check_units(s)]  # raises on a unit mistake
+    sers, thinned = bound_rows(sers)  # bounded memory: at most DISCOVER_MAX_ROWS rows
     shots = [shot_from_series(s, rig) for s in sers]
     names = ", ".join(s.name for s in sers)
     rng = np.random.default_rng(seed)
 
     base = JointModel(shots, baseline, rig=rig)
     fit0 = base.fit(max_nfev=80, name=names)
-    seg_slices = [sl for _, _, sl in base.segments]
-    before = structure_tests(segments_of(base, fit0))
+    # what the AR(1) noise model leaves in the baseline's residuals (an instrument's
+    # persisting errors, heavy tails -- or a misfit); candidates are judged under the
+    # noise their own residuals show (search.rescore)
+    noise0 = residual_noise(base, fit0.r)
+    for (j, c, _), (infl, tau) in zip(base.segments, noise0):
+        shots[j].noise[c] = replace(shots[j].noise[c], inflation=infl, tau=tau)
+    seg_slices = block_lengths(base, noise0)
+    before = structure_tests(segments_of(base, fit0, noise0))
     f_time = folds_time(base)
     f_shot = folds_shot(base) if len(shots) > 1 else None
     h0 = heldout(fit0, f_time, base)
@@ -141,10 +159,20 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
             if sc._refine is not None and sc.fit is None:
                 refine(sc)
 
-    from .report import build_report
+    for sc in scores:
+        rescore(sc, base, fit0, rng, n_boot=n_boot)
 
-    return build_report(shots, base, fit0, before, h0, h0_loso, scores,
-                        not_tested=untested(shots, baseline))
+    from .report import at_bound, build_report
+
+    # a candidate's own parameters at a bound (a spin impulse at its -10 rad/s limit)
+    cand_bounds = {}
+    for sc in scores:
+        if sc.fit is not None:
+            cand_bounds[sc.name] = at_bound(sc.fit, sc._model.bounds,
+                                            [p.name for p in by_name[sc.name].params])
+    return build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds,
+                        not_tested=untested(shots, baseline),
+                        warnings=[*unit_warnings, *thinned])
 
 
 def write_report(report: DiscoveryReport, path, plot=None) -> None:

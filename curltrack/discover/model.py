@@ -3,7 +3,9 @@
 Parameters (SI units):
 
 * shared by the shots (one sheet of ice): ``phi_y``, ``alpha_y`` (translation friction
-  mu = alpha v^phi, alpha in (m/s)^-phi), ``phi_theta``, ``alpha_theta`` (rotation),
+  mu = alpha v^phi, alpha in (m/s)^-phi), ``phi_theta``, ``alpha_theta`` (rotation) --
+  with several shots alpha is per shot (``alpha_y[i]``, ``alpha_theta[i]``): one sheet,
+  not identical friction under every throw,
   ``a_T`` (m/s^2, the size of the transverse acceleration; its direction follows the
   spin, so shots of opposite spin curl to opposite sides);
 * per shot ``i``: ``v0[i]`` (m/s), ``omega0[i]`` (rad/s, > 0 counter-clockwise), and the
@@ -143,12 +145,24 @@ class JointModel:
         free_shared = []
         if trans:
             free_shared += ["alpha_y"] + ([] if baseline == "dry" else ["phi_y"])
-            if spin and any(s.translates and s.spins for s in shots):
+            if any(s.curls for s in shots):
                 free_shared.append("a_T")
         if spin:
             free_shared += ["alpha_theta"] + ([] if baseline == "dry" else ["phi_theta"])
+        # shots of one session share the ice but not the same friction (the paper's pure
+        # rotations on one sheet span lambda_theta 1.55-1.66; a draw's rotation stops
+        # with its translation): phi is shared, alpha is each shot's own
+        self.alpha_per_shot = len(shots) > 1
+        if self.alpha_per_shot:
+            free_shared = [n for n in free_shared if not n.startswith("alpha")]
         self.free = list(free_shared)
         for i, s in enumerate(shots):
+            if self.alpha_per_shot:
+                for name, use in (("alpha_y", s.translates),
+                                  ("alpha_theta", s.spins and s.theta_measured)):
+                    self.values[f"{name}[{i}]"] = float(s.start.get(name, self.values[name]))
+                    if use:
+                        self.free.append(f"{name}[{i}]")
             for name in PER_SHOT:
                 key = f"{name}[{i}]"
                 self.values[key] = float(s.start.get(name, 0.0)) if name in s.start else 0.0
@@ -197,10 +211,14 @@ class JointModel:
         s = self.shots[i]
         t = s.t if t is None else t
         v = values
-        model = self._ShotModel(v0=v[f"v0[{i}]"], omega0=v[f"omega0[{i}]"],
-                                phi_y=v["phi_y"], alpha_y=v["alpha_y"],
-                                phi_theta=v["phi_theta"], alpha_theta=v["alpha_theta"],
-                                a_T=v["a_T"], R=self.R, r=self.r_band)
+        if s.theta_measured:
+            spin = dict(omega0=v[f"omega0[{i}]"], phi_theta=v["phi_theta"],
+                        alpha_theta=v.get(f"alpha_theta[{i}]", v["alpha_theta"]))
+        else:  # position-only: the curl's side, a spin that lasts as long as the slide
+            spin = dict(omega0=float(s.spin), alpha_theta=None)
+        model = self._ShotModel(v0=v[f"v0[{i}]"], phi_y=v["phi_y"],
+                                alpha_y=v.get(f"alpha_y[{i}]", v["alpha_y"]),
+                                a_T=v["a_T"], R=self.R, r=self.r_band, **spin)
         eff = effects_for(self.cand, self._effect_values(v), i, self.shots)
         tr = self._simulate(model, effects=eff, t=t)
         c, sn = np.cos(v[f"skew[{i}]"]), np.sin(v[f"skew[{i}]"])

@@ -18,6 +18,38 @@ from .shots import COORDS
 AMBIGUITY_MARGIN = 6.0
 
 
+#: a coordinate's RMS (or held-out RMS) this much above the baseline's counts as made
+#: worse (below it, the joint fit's trade between coordinates is within noise)
+WORSE_TOLERANCE = 1.02
+
+
+def at_bound(fit, bounds: dict, names=None) -> list:
+    """Free parameters of ``fit`` within 1e-6 of their span (or 1e-9) of a bound."""
+    out = []
+    for k in (fit.free if names is None else [n for n in names if n in fit.free]):
+        lo, hi = bounds.get(k, (None, None))
+        v = fit.values[k]
+        span = (hi - lo) if lo is not None and hi is not None else abs(v) + 1.0
+        tol = max(1e-6 * min(span, abs(v) + 1.0), 1e-9)
+        for b in (lo, hi):
+            if b is not None and abs(v - b) <= tol:
+                out.append(f"{k} = {v:.4g} at its bound {b:.4g}")
+    return out
+
+
+def _blockers(f, cand_bounds) -> list:
+    """Why a supported candidate must not be named (empty: nothing against it)."""
+    out = [f"parameter {b}" for b in cand_bounds]
+    for key, before, after in (("RMS", f["rms_before"], f["rms_after"]),
+                               ("held-out RMS", f["heldout_before_by_coord"],
+                                f["heldout_after_by_coord"])):
+        for c in COORDS:
+            b, a = (before or {}).get(c), (after or {}).get(c)
+            if b is not None and a is not None and a > WORSE_TOLERANCE * b:
+                out.append(f"{key} of {c} worse ({b:.3g} -> {a:.3g})")
+    return out
+
+
 def _rms_by_coord(model, r_raw) -> dict:
     out = {}
     for c in COORDS:
@@ -87,8 +119,9 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN) -> list:
     return sorted(out)
 
 
-def _finding(sc, rms0, h0, h0_loso, base) -> Finding:
-    """The finding of one scored candidate (supported or not)."""
+def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
+    """The finding of one scored candidate (supported or not; a supported one lists what
+    blocks its name, ``cand_bounds`` being its parameters at a bound)."""
     thr = sc.threshold["threshold"]
     kw = dict(effect=sc.name, delta_bic=sc.delta_bic, delta_bic_linear=sc.delta_bic_linear,
               threshold=thr, bootstrap=sc.threshold, location_start=sc.location,
@@ -109,17 +142,34 @@ def _finding(sc, rms0, h0, h0_loso, base) -> Finding:
         kw.update(loso_rmse_before=h0_loso["scalar"],
                   loso_rmse_after=sc.heldout["shot"]["scalar"])
         ok_cv = ok_cv or kw["loso_rmse_after"] < kw["loso_rmse_before"]
-    return Finding(**kw, supported=bool(sc.delta_bic > max(thr, 0.0) and ok_cv))
+    kw["supported"] = bool(sc.delta_bic > max(thr, 0.0) and ok_cv)
+    if kw["supported"]:
+        kw["not_named_because"] = _blockers(kw, cand_bounds)
+        if kw["not_named_because"]:
+            kw["evidence"] += "; not named: " + "; ".join(kw["not_named_because"])
+    return Finding(**kw)
 
 
-def build_report(shots, base, fit0, before, h0, h0_loso, scores,
-                 not_tested=None) -> DiscoveryReport:
-    """Assemble the report and decide the verdict (rule in :mod:`curltrack.discover`)."""
+def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=None,
+                 not_tested=None, warnings=()) -> DiscoveryReport:
+    """Assemble the report and decide the verdict (rule in :mod:`curltrack.discover`).
+
+    ``cand_bounds`` maps a candidate's name to its parameters at a bound (list of str);
+    ``warnings`` come first in the report's (the input's: units, thinning).
+    """
     n = fit0.n
     rms0 = _rms_by_coord(base, fit0.r_raw)
     vals, errs = _baseline_params(fit0)
-    findings = [_finding(sc, rms0, h0, h0_loso, base) for sc in scores]
+    cand_bounds = cand_bounds or {}
+    base_bound = at_bound(fit0, base.bounds)
+    bound_warnings = [f"baseline ({base.baseline}) parameter {b}: the baseline does not "
+                      f"describe these shots within its range; no cause is named"
+                      for b in base_bound]
+    findings = [_finding(sc, rms0, h0, h0_loso, base, cand_bounds.get(sc.name, []))
+                for sc in scores]
     supported = [(sc, f) for sc, f in zip(scores, findings) if f.supported]
+    blocked = [(sc, f) for sc, f in supported if f.not_named_because]
+    supported = [(sc, f) for sc, f in supported if not f.not_named_because]
     verdict, unexplained = "none", None
     best_fit, best_model_name, best_params = fit0, None, {}
     ambiguous = []
@@ -127,7 +177,11 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores,
         sc, f = max(supported, key=lambda p: p[0].delta_bic)
         best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
         ambiguous = rivals(sc, scores)
-        if sc.structure_after.structured:
+        if base_bound:
+            verdict = "unexplained"
+            unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
+                               baseline_at_bound=base_bound)
+        elif sc.structure_after.structured:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name)
         elif ambiguous:
@@ -136,9 +190,11 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores,
                                ambiguous=[sc.name] + ambiguous)
         else:
             verdict = sc.name
-    elif before.structured:
+    elif before.structured or blocked:
         verdict = "unexplained"
         unexplained = dict(before.where or {}, after_model="baseline")
+        if blocked:
+            unexplained["not_named"] = {sc.name: f.not_named_because for sc, f in blocked}
     if verdict == "unexplained":
         gain, k = _unexplained_gain(base, best_fit)
         w = unexplained
@@ -179,7 +235,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores,
                 "spins": s.spins, "t_stop_translation": s.t_stop_translation,
                 "t_stop_rotation": s.t_stop_rotation,
                 "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
-        warnings=[w for s in shots for w in s.warnings],
+        warnings=[*warnings, *(w for s in shots for w in s.warnings), *bound_warnings],
         not_tested=dict(not_tested or {}),
         shot_data=list(shots), model=base, fit0=fit0, best_fit=best_fit,
         extended=best_model_name, best_params=best_params)

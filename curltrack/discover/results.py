@@ -44,6 +44,9 @@ class Finding:
     delta_bic_linear, threshold, bootstrap, location_start, heldout_*_by_coord, note,
     nfev, loso_rmse_before, loso_rmse_after, structure_after
         A candidate's scan and refit (None when not refitted or not applicable).
+    not_named_because : list of str or None
+        For a supported candidate, what keeps it from being named (a parameter at its
+        bound, a coordinate's RMS made worse); empty when nothing does.
     where : dict or None
         Where the unexplained misfit sits (``unexplained`` only).
     fit : object
@@ -71,6 +74,7 @@ class Finding:
     loso_rmse_before: float | None = None
     loso_rmse_after: float | None = None
     structure_after: dict | None = None
+    not_named_because: list | None = None
     where: dict | None = None
     fit: object = field(default=None, compare=False, repr=False)
 
@@ -90,6 +94,8 @@ class Finding:
         if self.structure_after is not None:
             out["structure_after"] = self.structure_after
         out["supported"] = self.supported
+        if self.not_named_because is not None:
+            out["not_named_because"] = self.not_named_because
         out["evidence"] = self.evidence
         return out
 

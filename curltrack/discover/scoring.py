@@ -100,20 +100,23 @@ def block_resample(r, segments, rng, n_boot: int = N_BOOT, block: int = BLOCK_FR
     ----------
     r : (n,) array
         Whitened residuals.
-    segments : list of slice
-        The (shot, coordinate) stretches of ``r``; blocks never cross them.
+    segments : list of slice, or of (slice, int)
+        The (shot, coordinate) stretches of ``r``; blocks never cross them.  With a
+        block length per stretch (samples), that one is used instead of ``block``.
     rng : numpy Generator
     Returns
     -------
     (n, n_boot) array
     """
     out = np.empty((r.size, n_boot))
-    for sl in segments:
+    for item in segments:
+        # (slice, block length): the block spans the residuals' own correlation
+        sl, b = item if isinstance(item, tuple) else (item, block)
         seg = r[sl]
         m = seg.size
         if m == 0:
             continue
-        b = min(block, m)
+        b = min(b, m)
         n_blocks = -(-m // b)
         starts = rng.integers(0, m, size=(n_blocks, n_boot))
         idx = (starts[:, None, :] + np.arange(b)[None, :, None]) % m

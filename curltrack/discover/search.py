@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import CurltrackError
 from . import scoring
 from .model import FitOut, JointModel
+from .residuals import structure_tests
 from .shots import COORDS
 
 N_TIME_BLOCKS = 5
@@ -65,7 +66,9 @@ class CandidateScore:
     k: int = 0
     nfev: tuple | None = None
     chi2_gain: float | None = None
+    noise: list | None = None
     _refine: tuple | None = None
+    _scan: tuple | None = None
 
 
 def folds_time(model: JointModel, k: int = N_TIME_BLOCKS) -> np.ndarray:
@@ -173,6 +176,7 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
                                       n_boot=n_boot)
     loc = dict(locs[i_loc])
     score = CandidateScore(cand.name, lin, lin, thr, None, loc, note=cand.note, k=k)
+    score._scan = (sub_cols, ks)  # for the threshold under the candidate's own noise
     if sum(b.shape[1] for b in bases) == 0:
         score.note += "; not identifiable with these shots (degenerate with the baseline)"
         score.delta_bic = score.delta_bic_linear = -np.inf
@@ -315,15 +319,20 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
         {p.name: fit1.values[p.name] for p in cand.params},
         {p.name: fit1.err(p.name) for p in cand.params}, fit1.values, fit1.err, loc)
     score.structure_after = structure_tests(segments_of(m, fit1))
+    score._model = m
     return score
 
 
-def segments_of(model: JointModel, fit: FitOut):
-    """Residual segments with covariates (time, model y, model speed) for the tests."""
+def segments_of(model: JointModel, fit: FitOut, noise=None):
+    """Residual segments with covariates (time, model y, model speed) for the tests.
+
+    ``noise`` (one ``(inflation, tau)`` per segment, :func:`residual_noise`) scales the
+    residuals by the noise the AR(1) model left in them."""
     from .residuals import Segment
 
     out = []
-    for j, c, sl in model.segments:
+    noise = noise or [(1.0, 1.0)] * len(model.segments)
+    for (j, c, sl), (infl, tau) in zip(model.segments, noise):
         s = model.shots[j]
         use = s.use[c]
         pred = fit.predictions[j]
@@ -331,5 +340,55 @@ def segments_of(model: JointModel, fit: FitOut):
         vx = np.gradient(pred["x"], t) if t.size > 1 else np.zeros_like(t)
         vy = np.gradient(pred["y"], t) if t.size > 1 else np.zeros_like(t)
         speed = np.hypot(vx, vy)
-        out.append(Segment(j, c, fit.r[sl], t[use], pred["y"][use], speed[use], s.spin))
+        out.append(Segment(j, c, fit.r[sl] / np.sqrt(infl), t[use], pred["y"][use],
+                           speed[use], s.spin, tau=tau))
     return out
+
+
+def residual_noise(model: JointModel, r) -> list:
+    """``(inflation, tau)`` of each segment's whitened residuals ``r``
+    (:func:`.noise.residual_structure`)."""
+    from ..series.noise import residual_structure
+
+    return [residual_structure(r[sl], model.shots[j].t[model.shots[j].use[c]])
+            for j, c, sl in model.segments]
+
+
+def block_lengths(model: JointModel, noise) -> list:
+    """Bootstrap blocks per segment: >= 3 correlation times of the residuals."""
+    return [(sl, max(scoring.BLOCK_FRAMES, int(np.ceil(3 * tau))))
+            for (_, _, sl), (_, tau) in zip(model.segments, noise)]
+
+
+def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
+            n_boot: int = scoring.N_BOOT) -> None:
+    """Judge a refitted candidate under the noise its own residuals show.
+
+    The AR(1) model of second differences misses an instrument's persisting errors and
+    heavy tails.  The candidate's residuals are what is left once it explains what it
+    can: their long-scale variance per segment (``inflation``) is the noise against which
+    its chi-square gain, its look-elsewhere threshold (block bootstrap of the baseline's
+    residuals, blocks >= 3 correlation times) and the structure after it are measured.
+    Under the baseline (no effect) the candidate's residuals carry the instrument's
+    noise and the gain shrinks with it; with a real effect they are noise-like and
+    nothing changes.
+    """
+    if score.fit is None:
+        return
+    noise = residual_noise(base, score.fit.r)
+    score.noise = noise
+    scale = np.empty(fit0.n)
+    for (_, _, sl), (infl, _) in zip(base.segments, noise):
+        scale[sl] = 1.0 / np.sqrt(infl)
+    if np.all(scale == 1.0):
+        return
+    gain = float(np.sum((fit0.r * scale) ** 2) - np.sum((score.fit.r * scale) ** 2))
+    n = fit0.n
+    score.chi2_gain = gain
+    score.delta_bic = float(gain - score.k * np.log(n))
+    sub_cols, ks = score._scan
+    bases = scoring.effect_bases(fit0.J * scale[:, None], [c * scale[:, None] for c in sub_cols])
+    score.threshold = scoring.bootstrap_threshold(bases, fit0.r * scale,
+                                                  block_lengths(base, noise), ks, n, rng,
+                                                  n_boot=n_boot)
+    score.structure_after = structure_tests(segments_of(score._model, score.fit, noise))

@@ -41,7 +41,11 @@ class ShotData:
     translates, spins : bool
         Whether the rock moves / turns measurably.
     spin : int
-        +1 counter-clockwise, -1 clockwise.
+        +1 counter-clockwise, -1 clockwise; for a position-only shot, the side its curl
+        says (a counter-clockwise spin curls to -x).
+    theta_measured : bool
+        False for a position-only series: theta does not enter the fits, the spin's
+        size is not known (only its side, from the curl) and no candidate may change it.
     t_stop_translation, t_stop_rotation : float or None
     start : dict
         Starting values from the paper's closed-form fit (``curltrack.fit``).
@@ -58,10 +62,17 @@ class ShotData:
     translates: bool = True
     spins: bool = True
     spin: int = 1
+    theta_measured: bool = True
     t_stop_translation: float | None = None
     t_stop_rotation: float | None = None
     start: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+
+    @property
+    def curls(self) -> bool:
+        """Whether the transverse acceleration acts (sliding with a spin, measured or,
+        for a position-only shot, assumed: its side comes from the curl)."""
+        return self.translates and (self.spins or not self.theta_measured)
 
     def coords(self):
         """Coordinates that enter the fits."""
@@ -96,13 +107,20 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
     name = series.name
     if len(d) < MIN_ROWS:
         raise SeriesError(f"too few measured rows with t >= 0 ({len(d)}; need {MIN_ROWS})",
-                          path=name, where="ok")
+                          path=name, where=f"rows 2-{len(series.data) + 1}")
     t = d["t"].to_numpy(float)
     frame = d["frame"].to_numpy(int)
     obs = {c: d[c].to_numpy(float) for c in COORDS}
     t_tr, t_rot, warnings = series_stops(series)
     travel = float(np.nanmax(np.hypot(obs["x"] - obs["x"][0], obs["y"] - obs["y"][0])))
-    turn = float(np.nanmax(np.abs(obs["theta"] - obs["theta"][0])))
+    has_theta = np.isfinite(obs["theta"])
+    theta_measured = bool(series.theta_measured and has_theta.sum() >= MIN_ROWS)
+    if not theta_measured:
+        has_theta[:] = False
+        warnings.append(f"{name}: theta not measured (position-only series): the spin's "
+                        "side is taken from the curl, its size is not modelled")
+    th = obs["theta"][has_theta]
+    turn = float(np.max(np.abs(th - th[0]))) if th.size else 0.0
     translates = travel >= PURE_ROTATION_MAX_TRAVEL_M
     spins = turn >= MIN_ROTATION_RAD
     use, noise, sigma = {}, {}, {}
@@ -112,21 +130,43 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
         use[c] = (t <= t_stop + REST_MARGIN_S) if (t_stop is not None) else np.ones(t.size, bool)
         if not moving:
             use[c] = np.zeros(t.size, bool)
+        if c == "theta":
+            use[c] &= has_theta
+            if not has_theta.any():
+                noise[c] = Noise(1.0, 0.0, 0)  # never used: no theta row enters a fit
+                sigma[c] = np.ones(t.size)
+                continue
+        rows = has_theta if c == "theta" else np.ones(t.size, bool)
         col = "sigma_theta" if c == "theta" else "sigma_xy"
-        noise[c], sigma[c] = row_sigma(
-            frame, obs[c], t=t, t_stop=t_stop, name=name, field=c,
-            weights=d[col].to_numpy(float) if col in d.columns else None,
+        noise[c], s_rows = row_sigma(
+            frame[rows], obs[c][rows], t=t[rows], t_stop=t_stop, name=name, field=c,
+            weights=d[col].to_numpy(float)[rows] if col in d.columns else None,
             floor=1e-6 if c == "theta" else 1e-5)
+        sigma[c] = np.full(t.size, noise[c].sigma)
+        sigma[c][rows] = s_rows
     if not any(u.any() for u in use.values()):
         raise SeriesError("the rock neither moves nor turns measurably; nothing to model",
                           path=name)
     heading = series.meta.get("rink_heading_deg")
-    spin = 1 if (obs["theta"][-1] - obs["theta"][0]) >= 0 else -1
+    spin = 1 if th.size == 0 or (th[-1] - th[0]) >= 0 else -1
     shot = ShotData(name, t, frame, obs, use, sigma, noise,
                     heading_rad=math.radians(float(heading)) if heading is not None else 0.0,
                     translates=translates, spins=spins, spin=spin,
+                    theta_measured=theta_measured,
                     t_stop_translation=t_tr, t_stop_rotation=t_rot, warnings=warnings)
     shot.start = _starting_values(series, shot, rig or default_rig())
+    if not theta_measured and translates:
+        # the side of the spin from the data: the curl's (a_T < 0 in the fit's frame is
+        # a counter-clockwise spin); a curl within 2 sigma of zero does not say
+        a, e = shot.start.get("a_T_signed"), shot.start.get("a_T_err")
+        if a is None:
+            warnings.append(f"{name}: the curl could not be measured; spin side taken as "
+                            "counter-clockwise")
+        else:
+            shot.spin = -1 if a > 0 else 1
+            if e is None or abs(a) < 2 * e:
+                warnings.append(f"{name}: the curl ({a:.2g} m/s^2) does not tell the "
+                                "spin's side within 2 sigma; taken from its sign")
     return shot
 
 
@@ -151,9 +191,10 @@ def _starting_values(series: Series, shot: ShotData, rig) -> dict:
         out["omega0"] = 2.0 * th_f / t_rot
         out["alpha_theta"] = cf.alpha_rotation(abs(out["omega0"]), 0.0, t_rot, R, r)
     try:
-        fr = fit_series(series, rig).values
+        fitted = fit_series(series, rig)
     except CurltrackError:
         return out
+    fr = fitted.values
     for k in ("v0", "omega0", "phi_y", "alpha_y", "phi_theta", "alpha_theta"):
         v = fr.get(k)
         if v is not None and np.isfinite(v):
@@ -165,6 +206,8 @@ def _starting_values(series: Series, shot: ShotData, rig) -> dict:
                                                      fr.get("t_Ftheta") or t_rot, R, r))
     if fr.get("a_T") is not None and np.isfinite(fr["a_T"]):
         out["a_T"] = abs(float(fr["a_T"]))
+        out["a_T_signed"] = float(fr["a_T"])
+        out["a_T_err"] = fitted.errors.get("a_T")
     if fr.get("skew_deg") is not None and np.isfinite(fr["skew_deg"]):
         out["skew"] = -math.radians(float(fr["skew_deg"]))  # fit: skew_deg = -psi
     return out

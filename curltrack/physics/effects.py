@@ -47,8 +47,9 @@ import itertools
 import numpy as np
 
 from .registry import (EFFECTS, REQUIRED, Candidate, Effect, EffectDef, Param,
-                       as_effects, at_a_time_in_one_shot, effect_parameters, gather,
-                       register, spin_directions, time_grid, translating, unregister)
+                       as_effects, at_a_time_in_one_shot, curling, effect_parameters,
+                       gather, register, spin_directions, theta_measured, time_grid,
+                       translating, unregister)
 from .terms import slope_acceleration
 
 __all__ = ["EFFECTS", "Effect", "EffectDef", "Param", "Candidate", "register", "unregister",
@@ -130,6 +131,11 @@ def _slope_check(p):
 def _slope_unidentifiable(shots, baseline):
     if not translating(shots):
         return "the rock does not slide"
+    if len(spin_directions(shots)) < 2 and not all(
+            getattr(s, "theta_measured", True) for s in translating(shots)):
+        return ("needs shots of both spin directions with the rotation measured "
+                "(position-only shots: the spin's side is read off the curl, which a "
+                "lateral slope moves)")
     if len(spin_directions(shots)) < 2:
         return ("needs shots of both spin directions in a common frame: with one spin "
                 "direction a lateral slope is degenerate with the curl a_T, and a slope "
@@ -247,7 +253,7 @@ def _late_check(p):
 def _late_unidentifiable(shots, baseline):
     if not translating(shots):
         return "the rock does not slide"
-    if not spin_directions(shots):
+    if not curling(shots):
         return "the rock does not spin while it slides (a_T acts only on a spinning rock)"
     return None
 
@@ -277,6 +283,8 @@ def _pick_candidate(shots, baseline):
                   step=1e-4)]
     if not translating(shots):
         size = size[2:]
+    elif not theta_measured(shots):
+        size = size[:2]  # position-only: a spin impulse is never invented
     subsets = [c for r in range(1, len(size) + 1)
                for c in itertools.combinations(range(len(size)), r)]
     return Candidate("pick", size, location=[Param("t_s", null=0.0, lower=0.0, upper=1e9,

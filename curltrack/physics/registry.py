@@ -333,5 +333,19 @@ def translating(shots) -> list:
 
 
 def spin_directions(shots) -> set:
-    """Spin directions (+1/-1) of the shots whose rock slides and spins."""
-    return {s.spin for s in translating(shots) if s.spins}
+    """Spin directions (+1/-1) of the shots whose rock slides and spins, measured (a
+    position-only shot's side is read off its curl, so it does not count)."""
+    return {s.spin for s in translating(shots)
+            if s.spins and getattr(s, "theta_measured", True)}
+
+
+def curling(shots) -> list:
+    """The shots on which the transverse acceleration acts: sliding with a measured
+    spin, or position-only (the spin's side then comes from the curl)."""
+    return [s for s in translating(shots)
+            if s.spins or not getattr(s, "theta_measured", True)]
+
+
+def theta_measured(shots) -> bool:
+    """Whether any shot measured the rotation (none: no candidate may change the spin)."""
+    return any(getattr(s, "theta_measured", True) for s in shots)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import cv2
 
-from .._atomic import atomic_path, write_json, write_text
+from .._atomic import atomic_path, verify_video, write_json, write_text
 from ..errors import VideoError
 from ..rig import Rig
 from ..series import Series, write_series
@@ -46,8 +46,9 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
     rig : Rig
         Grid, rock and markers (and the frame rate / camera height, when given).
     video_path : path
-        Output mp4 (written atomically).  Beside it: ``<stem>.rig.toml`` (the rig, with
-        the frame rate) and ``<stem>.render.json`` (every setting and random choice).
+        Output mp4 (written atomically).  Beside it: ``<stem>.rig.toml`` (the rig; no
+        frame rate: the container has it) and ``<stem>.render.json`` (every setting and
+        random choice).
     truth_path : path, optional
         Where to write the truth series (CSV or Parquet + sidecar JSON).
     config : RenderConfig, optional
@@ -83,9 +84,11 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
     video_path = Path(video_path)
     with atomic_path(video_path) as tmp:
         writer = open_writer(tmp, prod.fps, (prod.cfg.width, prod.cfg.height))
+        written = 0
         try:
             for img, info in prod.frames():
                 writer.write(img)
+                written += 1
                 if progress and (info.index % 30 == 0 or info.index == prod.n_frames - 1):
                     print(f"\rrender: frame {info.index + 1}/{prod.n_frames}", end="",
                           file=sys.stderr)
@@ -93,11 +96,14 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
             writer.release()
         if progress:
             print(file=sys.stderr)
+        verify_video(tmp, written, video_path)
     truth = prod.truth()
     if truth_path is not None:
         write_series(truth_path, truth)
         truth = replace(truth, path=Path(truth_path))
     stem = video_path.with_suffix("")
-    write_text(f"{stem}.rig.toml", replace(rig, fps=prod.fps, source=None).to_toml())
+    # no [camera].fps: time comes from the container (a rig's fps that disagrees with
+    # a re-encoded copy of the video would be an error, not a silent override)
+    write_text(f"{stem}.rig.toml", replace(rig, fps=None, source=None).to_toml())
     write_json(f"{stem}.render.json", truth.meta["render"])
     return truth

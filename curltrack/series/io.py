@@ -2,7 +2,8 @@
 
 Columns (contract): ``frame`` (video frame index), ``t`` (s since the start frame),
 ``x``, ``y`` (m, rock centre on the ice), ``theta`` (rad, cumulative, CCW from above),
-``ok`` (1 = measured).  Optional: ``sigma_xy`` (m), ``sigma_theta`` (rad), ``quality``
+``ok`` (1 = measured; a row with x, y and an empty theta is a position-only
+measurement, see :attr:`Series.theta_measured`).  Optional: ``sigma_xy`` (m), ``sigma_theta`` (rad), ``quality``
 and anything else (kept as is).
 """
 
@@ -68,8 +69,28 @@ class Series:
         return self.data[self.data["ok"] == 1]
 
     @property
+    def theta_measured(self) -> bool:
+        """Whether the instrument measured the rotation: the sidecar's
+        ``theta_measured`` if given, else whether any measured row has a theta."""
+        flag = self.meta.get("theta_measured")
+        if flag is not None:
+            return bool(flag)
+        return bool(np.isfinite(self.measured["theta"].to_numpy(float)).any())
+
+    @property
     def name(self) -> str:
         return str(self.path) if self.path else "<series>"
+
+
+def _is_datetime(value) -> bool:
+    import warnings
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return not pd.isna(pd.to_datetime(str(value)))
+    except (ValueError, TypeError, OverflowError):
+        return False
 
 
 def sidecar_path(path) -> Path:
@@ -105,6 +126,12 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
     """
     missing = [c for c in COLUMNS if c not in data.columns]
     if missing:
+        sep = next((c for c in ";\t|" if len(data.columns) == 1
+                    and len(str(data.columns[0]).split(c)) >= len(COLUMNS)), None)
+        if sep is not None:  # one column whose name holds all the others
+            raise SeriesError(f"the columns are separated by {sep!r}, not ',' (a CSV from a "
+                              "locale that writes decimal commas?): save it with ','",
+                              path=name)
         raise SeriesError(f"missing column(s) {missing}; expected {list(COLUMNS)}", path=name)
     out = data.copy()
     for col in out.columns:
@@ -113,8 +140,10 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
             bad = num.isna() & out[col].notna() & (out[col].astype(str).str.strip() != "")
             if bad.any():
                 row = int(np.flatnonzero(bad.to_numpy())[0])
+                hint = ("; it looks like a date/time: t is seconds since the release"
+                        if col == "t" and _is_datetime(out[col].iloc[row]) else "")
                 raise SeriesError(f"non-numeric value {out[col].iloc[row]!r} in column "
-                                  f"'{col}'", path=name, where=f"row {row + 2}")
+                                  f"'{col}'{hint}", path=name, where=f"row {row + 2}")
             out[col] = num.astype(float)
     warnings: list[str] = []
     if len(out) == 0:
@@ -135,17 +164,28 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
     if (dt <= 0).any():
         row = int(np.flatnonzero(dt <= 0)[0]) + 1
         kind = "duplicate" if dt[row - 1] == 0 else "decreasing"
-        raise SeriesError(f"{kind} time t={_plain(t[row])} (t must increase)", path=name,
-                          where=f"row {row + 2}")
+        from ..sanity import MAX_T_S
+
+        hint = (": t looks like a clock time, not seconds since the release"
+                if abs(t[row]) > MAX_T_S else "")
+        raise SeriesError(f"{kind} time t={_plain(t[row])} in column 't' (t must "
+                          f"increase){hint}", path=name, where=f"row {row + 2}")
     out["frame"] = out["frame"].astype(int)
     out["ok"] = out["ok"].astype(int)
-    vals = out[["x", "y", "theta"]].to_numpy()
-    holes = (out["ok"].to_numpy() == 1) & ~np.isfinite(vals).all(axis=1)
+    ok = out["ok"].to_numpy() == 1
+    holes = ok & ~np.isfinite(out[["x", "y"]].to_numpy()).all(axis=1)
     if holes.any():
         rows = np.flatnonzero(holes)
-        warnings.append(f"{name}: {len(rows)} row(s) marked ok=1 have empty/NaN x, y or "
-                        f"theta (first at row {rows[0] + 2}); treated as ok=0")
+        warnings.append(f"{name}: {len(rows)} row(s) marked ok=1 have empty/NaN x or y "
+                        f"(first at row {rows[0] + 2}); treated as ok=0")
         out.loc[holes, "ok"] = 0
+    # position-only rows (contract): x, y measured, theta empty -- kept; theta is then
+    # simply not used there.  A series with theta on some rows only is said so.
+    no_theta = ok & ~holes & ~np.isfinite(out["theta"].to_numpy())
+    if no_theta.any() and not no_theta.sum() == (ok & ~holes).sum():
+        rows = np.flatnonzero(no_theta)
+        warnings.append(f"{name}: {len(rows)} measured row(s) have no theta (first at row "
+                        f"{rows[0] + 2}); x, y kept, theta not used there")
     return out, warnings
 
 

@@ -69,9 +69,16 @@ class Noise:
     rho: float
     n: int
     sigma_rest: float | None = None
+    #: set from the baseline's residuals (:func:`residual_structure`): the variance of
+    #: the whitened residuals at long scales (1 when the AR(1) model is the whole story)
+    inflation: float = 1.0
+    #: correlation time (samples) of the whitened residuals at scales below
+    #: ``HIGHPASS_S`` (1 when the AR(1) model whitens them)
+    tau: float = 1.0
 
     def as_dict(self) -> dict:
-        return {"sigma": self.sigma, "rho": self.rho, "n": self.n, "sigma_rest": self.sigma_rest}
+        return {"sigma": self.sigma, "rho": self.rho, "n": self.n, "sigma_rest": self.sigma_rest,
+                "inflation": self.inflation, "tau": self.tau}
 
 
 #: sigma / MAD of a normal distribution, 1 / Phi^-1(3/4)
@@ -234,3 +241,61 @@ def row_sigma(frame, q, *, t=None, t_stop=None, weights=None, name="<series>", f
             med = float(np.median(w[good]))
             s = noise.sigma * np.where(good, np.clip(w / med, 0.5, 10.0), 1.0)
     return noise, s
+
+
+#: whitened residuals are high-passed at this scale (s) before their noise is measured:
+#: a misfit of the model is mostly smooth over longer stretches
+HIGHPASS_S = 6.0
+#: windows (s) over which the residuals' sums measure the noise's long-scale variance:
+#: they span an instrument's errors that persist for up to ~3 s (LiDAR/radar fixes)
+WINDOW_S = 3.0
+#: correlation times (samples) above this mean the AR(1) model did not whiten the noise
+CORRELATED_TAU = 1.5
+_MEDIAN_CHI2_1 = 0.454936423119572
+
+
+def residual_structure(w, t) -> tuple[float, float]:
+    """The noise that the AR(1) model left in whitened residuals: (inflation, tau).
+
+    Real instruments err in ways the AR(1) model of second differences does not see:
+    step-like errors that hold for seconds, heavy tails and outliers (a robust scale
+    ignores them).  Their trace is in the baseline's whitened residuals ``w``: with ``w``
+    high-passed (running mean over ``HIGHPASS_S`` removed, so that a smooth misfit is
+    not taken for noise), ``inflation`` is the variance of its sums over ``WINDOW_S``
+    windows per sample -- the spectral density at low frequency that a smooth effect's
+    chi-square gain is measured against -- taken as the *median* over overlapping
+    windows, so that a localized misfit (a pick's kink, a patch) is not taken for noise
+    either, since noise is everywhere.  ``tau`` = inflation / variance is the correlation
+    time in samples.  For white or AR(1) noise both are ~1.
+
+    Parameters
+    ----------
+    w : array
+        Whitened residuals of one (shot, coordinate), in time order.
+    t : array
+        Their times (s).
+
+    Returns
+    -------
+    (float, float)
+        ``inflation`` (>= 1) and ``tau`` (samples, >= 1).
+    """
+    w = np.asarray(w, dtype=float)
+    t = np.asarray(t, dtype=float)
+    if w.size < 40:
+        return 1.0, 1.0
+    dt = float(np.median(np.diff(t)))
+    win = int(np.clip(round(HIGHPASS_S / max(dt, 1e-6)), 10, w.size))
+    trend = np.convolve(np.pad(w, (win // 2, win - 1 - win // 2), mode="reflect"),
+                        np.ones(win) / win, "valid")
+    hp = w - trend
+    L = int(np.clip(round(WINDOW_S / max(dt, 1e-6)), 3, win // 2))
+    c = np.concatenate([[0.0], np.cumsum(hp)])
+    sums = (c[L:] - c[:-L])[:: max(1, L // 3)]
+    if sums.size < 3:
+        return 1.0, 1.0
+    # the running mean took (L / win) of a window sum's variance with it (white noise)
+    infl = float(np.median(sums ** 2)) / L / _MEDIAN_CHI2_1 / (1.0 - L / win)
+    var = float(np.mean(hp * hp)) / (1.0 - 1.0 / win)
+    tau = infl / var if var > 0 else 1.0
+    return float(max(1.0, infl)), float(np.clip(tau, 1.0, L))

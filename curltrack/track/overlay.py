@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._atomic import atomic_path
+from .._atomic import atomic_path, verify_video
 from ..errors import VideoError
 
 __all__ = ["write_overlay"]
@@ -66,6 +66,7 @@ def write_overlay(video_path, overlay_path, records, series, loop_info, rig, sta
                                  (info.width, info.height))
         if not writer.isOpened():
             raise VideoError("cannot open the overlay video for writing", path=overlay_path)
+        written = 0
         try:
             for fr in iter_frames(video_path, start=start, end=end, exclude=exclude):
                 img = fr.image
@@ -99,5 +100,7 @@ def write_overlay(video_path, overlay_path, records, series, loop_info, rig, sta
                             cv2.circle(img, tuple(np.round(p).astype(int)), 7, col, 1,
                                        cv2.LINE_AA)
                 writer.write(img)
+                written += 1
         finally:
             writer.release()
+        verify_video(tmp, written, overlay_path)

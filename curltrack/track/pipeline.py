@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import TrackingError
 from ..rig import Rig
 from .markers import MarkerDetector
+from .outline import outline_radius
 from .parallax import similarity_fit
 
 __all__ = ["track_video", "FrameRecord"]
@@ -32,6 +33,10 @@ GIVE_UP_FRAMES = 90
 #: grid's prediction: 0.4 s at 30 fps, where a curling rock's deceleration (~0.1 m/s^2)
 #: moves it < 1 cm from its constant-velocity path - well under a cell.
 ANCHOR_MAX_GAP = 12
+
+
+#: The rock's outline is measured on every OUTLINE_EVERY-th frame (~0.3 ms each).
+OUTLINE_EVERY = 3
 
 
 @dataclass
@@ -50,6 +55,7 @@ class FrameRecord:
     grid_sigma_m: float = np.nan  # 1 sigma of the homography at the image centre (m)
     spacing_px: float = np.nan
     contrast: float = np.nan
+    outline_m: float = np.nan  # radius of the rock's outline (m, lattice; track.outline)
     notes: list = field(default_factory=list)
 
 
@@ -247,6 +253,9 @@ def track_frames(frames, rig: Rig, path=None, progress=None) -> tuple[list[Frame
         c, phi, s, _ = similarity_fit(L, ice)
         mpp = pixel_scale(on_ice[M:])
         rec.centre_app, rec.phi, rec.scale = c, phi, s
+        if len(markers_ice) and fr.index % OUTLINE_EVERY == 0:  # the scale's 2nd ruler
+            rec.outline_m = outline_radius(img, pose.H, calib.K, calib.dist, c,
+                                           rig.rock_diameter_m / 2)[0]
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
         rec.grid_sigma_m = (pose.sigma_px if np.isfinite(pose.sigma_px) else 0.3) * mpp
         rec.contrast = float(np.min(mf.contrast))

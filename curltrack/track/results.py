@@ -9,6 +9,7 @@ from .. import __version__
 from ..errors import TrackingError
 from ..rig import Rig
 from ..series import Series, make_meta
+from .outline import scale_check
 from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, correct_parallax,
                        estimate_height, focal_for_height, layout_scale_mismatch)
 from .shotframe import to_shot_frame
@@ -117,7 +118,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
             records[i].status = "marker layout inconsistent with the rest of the video"
         ok &= ~bad
         # every position would be scaled wrong: stop instead of writing them
-        mismatch = layout_scale_mismatch(float(np.median(scale[ok])), rig)
+        mismatch = layout_scale_mismatch(float(np.median(scale[ok])), rig) or scale_check(
+            scale[ok], np.array([r.outline_m for r in records])[ok] / (rig.rock_diameter_m / 2),
+            rig, rig.rock_height_m + rig.grid_depth_m / ICE_REFRACTIVE_INDEX,
+            rig.grid_depth_m / ICE_REFRACTIVE_INDEX)  # the grid against the rock's rulers
         if mismatch:
             raise TrackingError(mismatch, path=path, where=f"frames {frame[0]}-{frame[-1]}")
     if ok.sum() < MIN_MEASURED:

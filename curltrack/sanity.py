@@ -1,0 +1,164 @@
+"""Unit and convention sanity of a series, before ``fit`` or ``discover`` trusts it.
+
+The contract's units are seconds, metres and radians (theta counter-clockwise,
+cumulative).  A series in other units still fits — to confidently wrong numbers
+(theta in degrees gives omega0 = 57 rad/s, x/y in mm v0 = 500 m/s) — so the physical
+ranges of a curling shot are checked first:
+
+=====================  ==========================  ==========================================
+quantity               plausible range             the likely mistake outside it
+=====================  ==========================  ==========================================
+duration (t span)      <= :data:`MAX_DURATION_S`   t in ms (span / 1000 within 1 s and
+                                                   the maximum)
+t values               < :data:`MAX_T_S`           a clock time (epoch seconds), not t since
+                                                   release
+speed |d(x, y)/dt|     <= :data:`MAX_SPEED`        x, y in mm (> :data:`MM_SPEED`, and
+                                                   speed / 1000 plausible)
+spin |d theta/dt|      <= :data:`MAX_SPIN`         theta in degrees (spin / 57.3 plausible)
+theta steps            no jump of ~2 pi            theta wrapped to [0, 2 pi) or (-pi, pi]
+=====================  ==========================  ==========================================
+
+A delivery leaves the hand at 1-4.5 m/s (a hard take-out) and turns at 0.2-4 rad/s (a
+spinner at most ~3 turns/s), and a shot lasts 10-35 s from release to rest.  Speeds and
+spins are measured over ~0.1 s (so frame noise does not count) and their 90th
+percentile compared.  A unit mistake is a one-line :class:`~curltrack.errors.SeriesError`
+naming the column; a value out of range with no unit that explains it is a warning.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import SeriesError
+
+__all__ = ["check_units", "bound_rows", "MAX_DURATION_S", "MAX_T_S", "MAX_SPEED",
+           "MAX_SPIN", "DISCOVER_MAX_ROWS"]
+
+#: Longest series taken as one shot (s): a slow draw lasts ~35 s.
+MAX_DURATION_S = 120.0
+#: Largest t (s): t counts from the start frame; a clock time is far beyond.
+MAX_T_S = 1e5
+#: Fastest plausible rock (m/s): a hard take-out leaves the hand at ~4.5 m/s.
+MAX_SPEED = 8.0
+#: Speed (m/s) beyond which x, y in millimetres is the explanation (between MAX_SPEED
+#: and this, a warning: x, y scaled wrong some other way, or t too fine).
+MM_SPEED = 40.0
+#: Fastest plausible spin (rad/s): a spinner turns at most ~3 turns/s.
+MAX_SPIN = 25.0
+#: Most measured rows ``discover`` fits at once (all shots together).  Its memory
+#: grows ~0.1 MB per row (2,500 rows: 470 MB peak); beyond this the shots are
+#: thinned evenly (every k-th row), which keeps the noise per point and the shape of
+#: every residual.  With it, discover stays under 1 GB whatever the input.
+DISCOVER_MAX_ROWS = 4000
+#: Time over which speeds and spins are measured (s).
+RATE_WINDOW_S = 0.1
+
+
+def check_units(series) -> list[str]:
+    """Check a series against the physical ranges of a curling shot.
+
+    Parameters
+    ----------
+    series : Series
+        The series (``t`` s, ``x``/``y`` m, ``theta`` rad); rows with ``ok`` = 1 are used.
+
+    Returns
+    -------
+    list of str
+        Warnings: values out of range that no unit mistake explains.
+
+    Raises
+    ------
+    SeriesError
+        One line naming the file and the column: t in ms or a clock time, x/y in mm,
+        theta in degrees or wrapped.
+    """
+    d = series.measured
+    d = d[np.isfinite(d[["t", "x", "y", "theta"]].to_numpy(float)).all(axis=1)]
+    path = series.name
+    warnings: list[str] = []
+    t = d["t"].to_numpy(float)
+    if t.size < 3:
+        return warnings
+
+    def fail(column, message):
+        raise SeriesError(message, path=path, where=f"column '{column}'")
+
+    span = float(t.max() - t.min())
+    if t.max() > MAX_T_S:
+        fail("t", f"values up to {t.max():.4g} look like a clock time (e.g. seconds since "
+                  "1970), not seconds since the release: subtract the first time")
+    if span > MAX_DURATION_S:
+        if 1.0 <= span / 1000.0 <= MAX_DURATION_S:
+            fail("t", f"the series spans {span:.5g} 'seconds' — t looks like milliseconds "
+                      f"({span / 1000:.3g} s if divided by 1000): the contract's t is in s")
+        fail("t", f"the series spans {span:.5g} s, more than one shot "
+                  f"(<= {MAX_DURATION_S:g} s): split the recording into shots")
+    lag = _lag(t)
+    th = d["theta"].to_numpy(float)
+    jumps = np.abs(np.diff(th))
+    near_2pi = (jumps > np.pi) & (np.abs(jumps - 2 * np.pi) < 1.0)
+    if near_2pi.any() and np.abs(np.diff(np.unwrap(th))).max() < 1.0:
+        k = int(np.flatnonzero(near_2pi)[0]) + 1
+        row = int(d.index[k]) + 2  # the file's line number (header is line 1)
+        fail("theta", f"theta jumps by {th[k] - th[k - 1]:+.3f} rad at row {row}: it looks "
+                      "wrapped to one turn; the contract's theta is cumulative (unwrap it, "
+                      "e.g. numpy.unwrap)")
+    spin = _rate(t, th[:, None], lag)
+    if spin > MAX_SPIN:
+        if spin / np.degrees(1.0) <= MAX_SPIN:
+            fail("theta", f"the rock would spin at {spin:.3g} rad/s — theta looks like "
+                          f"degrees ({np.radians(spin):.3g} rad/s if converted): the "
+                          "contract's theta is in radians")
+        warnings.append(f"theta: a spin of {spin:.3g} rad/s is beyond a curling rock's "
+                        f"(<= {MAX_SPIN:g} rad/s): check the units of theta and t")
+    xy = d[["x", "y"]].to_numpy(float)
+    speed = _rate(t, xy, lag)
+    if speed > MAX_SPEED:
+        if speed > MM_SPEED and speed / 1000.0 <= MAX_SPEED:
+            fail("x/y", f"the rock would move at {speed:.4g} m/s — x and y look like "
+                        f"millimetres ({speed / 1000:.3g} m/s if divided by 1000): the "
+                        "contract's x, y are in metres")
+        warnings.append(f"x/y: a speed of {speed:.3g} m/s is beyond a curling rock's "
+                        f"(<= {MAX_SPEED:g} m/s): check the units of x, y and t")
+    return warnings
+
+
+def _lag(t: np.ndarray) -> int:
+    dt = np.median(np.diff(t)) if t.size > 1 else 1.0
+    return int(max(1, min(t.size - 1, round(RATE_WINDOW_S / dt)))) if dt > 0 else 1
+
+
+def _rate(t: np.ndarray, v: np.ndarray, lag: int) -> float:
+    """90th percentile of |v(t + lag rows) - v(t)| / dt (units of v per s)."""
+    dt = t[lag:] - t[:-lag]
+    good = dt > 0
+    if not good.any():
+        return 0.0
+    step = np.linalg.norm(v[lag:] - v[:-lag], axis=1)[good] / dt[good]
+    return float(np.percentile(step, 90))
+
+
+def bound_rows(series_list, max_rows: int = DISCOVER_MAX_ROWS):
+    """Thin a list of series evenly to at most ``max_rows`` measured rows in all.
+
+    Returns
+    -------
+    (list of Series, list of str)
+        The series (the same objects when nothing was thinned; new ones otherwise —
+        inputs are never changed) and a warning saying what was done.
+    """
+    from dataclasses import replace
+
+    n = sum(int((s.data["ok"] == 1).sum()) for s in series_list)
+    if n <= max_rows:
+        return list(series_list), []
+    k = int(np.ceil(n / max_rows))
+
+    def thin(d):  # frame // k: consecutive kept rows stay consecutive (the noise model)
+        return d.iloc[::k].assign(frame=d["frame"].iloc[::k] // k).reset_index(drop=True)
+
+    out = [replace(s, data=thin(s.data)) for s in series_list]
+    return out, [f"{n} measured rows is more than discover fits at once ({max_rows}): "
+                 f"every {k}th row used (the noise per point and the residuals' shape "
+                 "are kept; fewer points make weak effects harder to see)"]

@@ -1,0 +1,126 @@
+"""Unit and convention mistakes in a series: caught by fit and discover, named.
+
+Each case is a simulated shot (known truth, SI units) written with one column in the
+wrong unit or convention; the right one must never be flagged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from curltrack.physics.shot import ShotModel
+from curltrack.sanity import check_units
+from curltrack.series import Series, write_series
+from curltrack.simulate import simulate_series
+
+
+def _shot(seed: int, v0=None, omega0=None) -> Series:
+    rng = np.random.default_rng(seed)
+    v0 = rng.uniform(0.8, 2.2) if v0 is None else v0
+    omega0 = rng.choice([-1, 1]) * rng.uniform(0.3, 4.0) if omega0 is None else omega0
+    return simulate_series(ShotModel(v0=v0, omega0=omega0), fps=float(rng.choice([30, 60])),
+                           noise_m=0.002, noise_rad=0.005, seed=seed)
+
+
+def _wrong(s: Series, mistake: str) -> Series:
+    d = s.data.copy()
+    if mistake == "degrees":
+        d["theta"] = np.degrees(d["theta"])
+    elif mistake == "mm":
+        d[["x", "y"]] *= 1000.0
+    elif mistake == "ms":
+        d["t"] *= 1000.0
+    elif mistake == "wrapped":
+        d["theta"] = np.mod(d["theta"], 2 * np.pi)
+    elif mistake == "wrapped_pm_pi":
+        d["theta"] = np.angle(np.exp(1j * d["theta"]))
+    elif mistake == "epoch":
+        d["t"] += 1.7e9
+    meta = {k: v for k, v in s.meta.items() if not k.startswith(("t_stop", "stop_frame"))}
+    return Series(d, meta)
+
+
+CASES = {"degrees": ("theta", "degrees"), "mm": ("x/y", "millimetres"),
+         "ms": ("'t'", "milliseconds"), "wrapped": ("theta", "wrapped"),
+         "wrapped_pm_pi": ("theta", "wrapped"), "epoch": ("'t'", "clock time")}
+
+
+@pytest.fixture(scope="module")
+def seed():
+    return int(np.random.SeedSequence().entropy % 2**32)
+
+
+@pytest.mark.parametrize("command", ["fit", "discover"])
+@pytest.mark.parametrize("mistake", list(CASES))
+def test_unit_mistake_is_caught(cli, tmp_path, seed, mistake, command):
+    s = _wrong(_shot(seed, omega0=np.random.default_rng(seed).uniform(1.0, 3.0)), mistake)
+    f = tmp_path / "shot.csv"
+    write_series(f, s)
+    out = tmp_path / "out.json"
+    column, word = CASES[mistake]
+    try:
+        cli.fails(command, f, "-o", out, output=out, names=[f, column, word])
+    except AssertionError as exc:
+        raise AssertionError(f"seed {seed}: {exc}") from None
+
+
+def test_right_units_never_flagged(seed):
+    """A random sweep of 40 simulated shots (draws, fast take-outs, spinners, 30/60 fps)."""
+    rng = np.random.default_rng(seed)
+    for i in range(40):
+        kind = rng.integers(3)
+        v0 = [rng.uniform(0.8, 2.2), rng.uniform(2.2, 4.5), rng.uniform(0.0, 0.05)][kind]
+        omega0 = rng.choice([-1, 1]) * [rng.uniform(0.2, 4.0), rng.uniform(0.2, 3.0),
+                                        rng.uniform(3.0, 18.0)][kind]
+        s = _shot(int(rng.integers(2**31)), v0=v0, omega0=omega0)
+        assert check_units(s) == [], (seed, i, v0, omega0)
+
+
+def test_one_row_per_second_in_ms_also_caught():
+    """t in ms at a coarse rate: the span, not the step, tells."""
+    s = _wrong(_shot(3), "ms")
+    s = replace(s, data=s.data.iloc[::30].reset_index(drop=True))
+    with pytest.raises(Exception, match="milliseconds"):
+        check_units(s)
+
+
+def test_implausible_speed_without_unit_fix_warns(cli, tmp_path):
+    """x, y x 3 (no unit): fit exits 0 but says the speed is beyond a rock's."""
+    s = _shot(5, v0=3.0, omega0=1.5)
+    s.data[["x", "y"]] *= 3.0
+    f = tmp_path / "fast.csv"
+    write_series(f, s)
+    w = check_units(s)
+    assert len(w) == 1 and "speed" in w[0], w
+    out = tmp_path / "fit.json"
+    cli.succeeds("fit", f, "-o", out, "-q")
+    import json
+
+    assert any("speed" in x for x in json.loads(out.read_text())["warnings"])
+
+
+def test_discover_same_file_twice_is_refused(cli, tmp_path):
+    s = _shot(4)
+    f = tmp_path / "f.csv"
+    write_series(f, s)
+    out = tmp_path / "r.json"
+    cli.fails("discover", f, f, "-o", out, output=out, names=[f, "twice"])
+    (tmp_path / "g.csv").symlink_to(f)
+    cli.fails("discover", f, tmp_path / "g.csv", "-o", out, output=out, names=["twice"])
+
+
+def test_datetime_and_semicolon_csv_name_the_cause(cli, tmp_path):
+    d = _shot(6).data
+    dt = d.copy()
+    dt["t"] = pd.Timestamp("2026-01-01 10:00") + pd.to_timedelta(dt["t"], unit="s")
+    f = tmp_path / "dt.csv"
+    dt.to_csv(f, index=False)
+    out = tmp_path / "fit.json"
+    cli.fails("fit", f, "-o", out, output=out, names=[f, "'t'", "date"])
+    g = tmp_path / "semi.csv"
+    d.to_csv(g, index=False, sep=";")
+    cli.fails("fit", g, "-o", out, output=out, names=[g, "';'"])
