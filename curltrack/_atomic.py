@@ -25,7 +25,7 @@ def check_writable(path) -> None:
     path = Path(path)
     try:
         st = os.stat(path)
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):  # (a parent that is a file: below)
         st = None
     except OSError as exc:
         if exc.errno == errno.ELOOP:

@@ -194,8 +194,8 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
                                 "re-export the video (H.264 mp4) or check the file"))
         return rep
     rep.checks.append(Check(
-        "video", "ok", f"{info.codec or '?'} {info.width}x{info.height}, {info.n_frames} "
-        f"frames, {info.duration_s:.2f} s", values=asdict(info)))
+        "video", "ok", f"{info.describe()}; {info.n_frames} frames, {info.duration_s:.2f} s",
+        values=asdict(info)))
     fps_src = "container" + (", the rig's fps agrees" if rig.fps else "")
     if info.fps < MIN_FPS:
         rep.checks.append(Check("fps", "warn", f"{info.fps:.3g} frames/s ({fps_src})",
@@ -349,8 +349,9 @@ def _geometry_checks(rep, rig, samples):
         rig.rock_height_m + depth, depth)
     if mismatch:  # (track stops with this error)
         rep.checks.append(Check("camera_height", "fail", mismatch,
-                                "fix [grid] spacing_x_m/spacing_y_m (and colors) or the "
-                                "[[markers]] positions in the rig", {"layout_scale": s}))
+                                "the grid's scale and the rock disagree: track would stop "
+                                "(see the line above for what to check)",
+                                {"layout_scale": s}))
         return
     h = rig.rock_height_m + rig.grid_depth_m / ICE_REFRACTIVE_INDEX
     H = h * s / (s - 1.0) if s > 1.0 else np.inf

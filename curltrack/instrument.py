@@ -15,8 +15,8 @@ Noise classes (:data:`NOISE_CLASSES`), each with a 1-sigma scale ``sigma`` (m or
 ``steps``
     Step-like instrument errors (LiDAR/radar fixes that jump and then hold): the error
     holds a level for 0.5-3 s (uniform), then jumps to a new level; levels are
-    +-U(0.5, 1.5) sigma, so jumps are 0-3 sigma (3-15 cm for sigma = 5 cm) and the lag-1
-    correlation at 10 Hz is ~0.95; white jitter of sigma/5 on top.
+    +-U(0.5, 1.5) sigma, so jumps are 0-3 sigma (3-15 cm for sigma = 5 cm); with white
+    jitter of sigma/5 on top the lag-1 correlation at 10 Hz is ~0.91 (0.94 without it).
 ``heavy``
     Heavy-tailed errors: Student t with 3 degrees of freedom scaled to a standard
     deviation of sigma, and 1 % outliers at 10 sigma (2 cm for sigma = 2 mm) of random sign.

@@ -74,7 +74,7 @@ def check_units(series) -> list[str]:
         theta in degrees or wrapped.
     """
     d = series.measured
-    d = d[np.isfinite(d[["t", "x", "y", "theta"]].to_numpy(float)).all(axis=1)]
+    d = d[np.isfinite(d[["t", "x", "y"]].to_numpy(float)).all(axis=1)]
     path = series.name
     warnings: list[str] = []
     t = d["t"].to_numpy(float)
@@ -95,10 +95,29 @@ def check_units(series) -> list[str]:
         fail("t", f"the series spans {span:.5g} s, more than one shot "
                   f"(<= {MAX_DURATION_S:g} s): split the recording into shots")
     lag = _lag(t)
+    has_theta = np.isfinite(d["theta"].to_numpy(float))
+    if has_theta.sum() >= 3:  # (position-only series have no theta)
+        _check_theta(d[has_theta], fail, warnings)
+    xy = d[["x", "y"]].to_numpy(float)
+    speed = _rate(t, xy, lag)
+    if speed > MAX_SPEED:
+        if speed > MM_SPEED and speed / 1000.0 <= MAX_SPEED:
+            fail("x/y", f"the rock would move at {speed:.4g} m/s — x and y look like "
+                        f"millimetres ({speed / 1000:.3g} m/s if divided by 1000): the "
+                        "contract's x, y are in metres")
+        warnings.append(f"x/y: a speed of {speed:.3g} m/s is beyond a curling rock's "
+                        f"(<= {MAX_SPEED:g} m/s): check the units of x, y and t")
+    return warnings
+
+
+def _check_theta(d, fail, warnings) -> None:
+    t = d["t"].to_numpy(float)
+    lag = _lag(t)
     th = d["theta"].to_numpy(float)
     jumps = np.abs(np.diff(th))
     near_2pi = (jumps > np.pi) & (np.abs(jumps - 2 * np.pi) < 1.0)
-    if near_2pi.any() and np.abs(np.diff(np.unwrap(th))).max() < 1.0:
+    # (rows <= 0.5 s apart: a real turn of ~2 pi between rows would be > 10 rad/s)
+    if np.median(np.diff(t)) <= 0.5 and near_2pi.any() and np.abs(np.diff(np.unwrap(th))).max() < 1.0:
         k = int(np.flatnonzero(near_2pi)[0]) + 1
         row = int(d.index[k]) + 2  # the file's line number (header is line 1)
         fail("theta", f"theta jumps by {th[k] - th[k - 1]:+.3f} rad at row {row}: it looks "
@@ -112,16 +131,6 @@ def check_units(series) -> list[str]:
                           "contract's theta is in radians")
         warnings.append(f"theta: a spin of {spin:.3g} rad/s is beyond a curling rock's "
                         f"(<= {MAX_SPIN:g} rad/s): check the units of theta and t")
-    xy = d[["x", "y"]].to_numpy(float)
-    speed = _rate(t, xy, lag)
-    if speed > MAX_SPEED:
-        if speed > MM_SPEED and speed / 1000.0 <= MAX_SPEED:
-            fail("x/y", f"the rock would move at {speed:.4g} m/s — x and y look like "
-                        f"millimetres ({speed / 1000:.3g} m/s if divided by 1000): the "
-                        "contract's x, y are in metres")
-        warnings.append(f"x/y: a speed of {speed:.3g} m/s is beyond a curling rock's "
-                        f"(<= {MAX_SPEED:g} m/s): check the units of x, y and t")
-    return warnings
 
 
 def _lag(t: np.ndarray) -> int:

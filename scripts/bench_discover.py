@@ -15,6 +15,8 @@ Usage::
 
     python scripts/bench_discover.py [--trials 10] [--clean 40] [--effects pick,late_curl]
         [--json OUT.json]
+    python scripts/bench_discover.py --noise-classes white,ar1,steps,heavy --clean 10 \
+        --trials 4 --effects pick,friction_patch,late_curl [--session 10]
 
 The functions are importable (``detection_rate``, ``false_alarm_rate``,
 ``detection_table``) for the main benchmark.
@@ -48,16 +50,81 @@ GRIDS = {
 N_SHOTS = {"ice_slope": 2}
 
 
-def run_one(effect: str, strength: float, seed: int, n_shots: int | None = None) -> dict:
+CAP = {"friction_patch": 0.9, "late_curl": 2.5}
+#: the README's 90 % strengths at 2 mm white noise (the noise-class runs scale them by
+#: each class's position-noise scale)
+S90_WHITE = {"pick": 0.002, "friction_patch": 0.08, "late_curl": 0.23}
+
+
+def run_one(effect: str, strength: float, seed: int, n_shots: int | None = None,
+            instrument=None) -> dict:
     """One simulated case through ``discover``: verdict, seconds, shots."""
     n_shots = n_shots or N_SHOTS.get(effect, 1)
     rng = np.random.default_rng(seed)
-    shots, truth = make_case(effect, strength, rng, n_shots=n_shots)
+    if instrument is not None and instrument.get("random"):
+        instrument = {"noise_class": instrument["noise_class"],
+                      "rate_hz": float(rng.choice([10.0, 30.0])),
+                      "theta": bool(rng.random() < 0.5)}
+    shots, truth = make_case(effect, strength, rng, n_shots=n_shots, instrument=instrument)
     t0, c0 = time.perf_counter(), time.process_time()
     rep = discover(shots, baseline=truth["baseline"], seed=seed)
     return {"effect": effect, "strength": strength, "seed": seed,
             "verdict": rep["verdict"], "seconds": time.perf_counter() - t0,
-            "cpu_seconds": time.process_time() - c0, "n_shots": len(shots)}
+            "cpu_seconds": time.process_time() - c0, "n_shots": len(shots),
+            "instrument": instrument}
+
+
+def noise_class_table(classes, n_clean: int, trials: int, effects, seed0: int,
+                      log=print, mults=(1.0, 3.0)) -> dict:
+    """Per noise class: false alarms on ``n_clean`` clean shots, and detection of each
+    effect at its 2 mm 90 % strength scaled by the class's noise scale (x ``mults``),
+    ``trials`` cases each; rate (10/30 Hz) and theta (measured or not) drawn per case."""
+    from curltrack.instrument import TYPICAL_SCALE
+
+    out = {}
+    for cls in classes:
+        inst = {"noise_class": cls, "random": True}
+        runs = [run_one("none", 0.0, seed0 + i, instrument=inst) for i in range(n_clean)]
+        bad = [r for r in runs if r["verdict"] != "none"]
+        scale = TYPICAL_SCALE[cls][0] / 0.002
+        row = {"scale": scale, "clean": n_clean, "false_alarms": len(bad),
+               "false_verdicts": [(r["verdict"], r["instrument"]) for r in bad],
+               "cpu_clean_median": float(np.median([r["cpu_seconds"] for r in runs])),
+               "detection": {}}
+        log(f"{cls}: false alarms {len(bad)}/{n_clean} {row['false_verdicts']} (cpu median "
+            f"{row['cpu_clean_median']:.1f} s)", flush=True)
+        for eff in effects:
+            for mult in mults:
+                # a patch's factor stays > 0 and late curl's |k| within its candidate
+                # bounds: at the steps class's scale (x25) they are capped
+                st = min(S90_WHITE[eff] * scale * mult, CAP.get(eff, np.inf))
+                rr = [run_one(eff, st, seed0 + 100 + i, instrument=inst) for i in range(trials)]
+                hits = sum(r["verdict"] == eff for r in rr)
+                wrong = sum(r["verdict"] not in (eff, "none", "unexplained") for r in rr)
+                row["detection"][f"{eff} x{mult:g}"] = {
+                    "strength": st, "hits": hits, "wrong": wrong, "trials": trials,
+                    "verdicts": [r["verdict"] for r in rr]}
+                log(f"{cls}: {eff} at {st:.4g} (x{mult:g}): {hits}/{trials} named, {wrong} "
+                    f"wrong {[r['verdict'] for r in rr]}", flush=True)
+        out[cls] = row
+    return out
+
+
+def session_cpu(n_shots: int, seed: int) -> float:
+    """CPU seconds of ``discover`` on a clean session of ``n_shots`` 30 fps shots."""
+    from curltrack.instrument import session_models
+    from curltrack.physics import ShotModel
+    from curltrack.simulate import simulate_series
+
+    rng = np.random.default_rng(seed)
+    models = session_models(ShotModel(v0=1.9, omega0=1.5), n_shots, rng)
+    shots = [simulate_series(m, noise_m=0.002, noise_rad=0.005,
+                             seed=int(rng.integers(1 << 30))) for m in models]
+    c0 = time.process_time()
+    rep = discover(shots, seed=seed)
+    cpu = time.process_time() - c0
+    print(f"session of {n_shots} shots: verdict {rep['verdict']}, cpu {cpu:.1f} s", flush=True)
+    return cpu
 
 
 def detection_rate(effect: str, strength: float, trials: int = 10, seed0: int = 0,
@@ -126,7 +193,27 @@ def main(argv=None):
     ap.add_argument("--grid", default=None,
                     help="comma-separated strengths replacing the default grid(s)")
     ap.add_argument("--seed0", type=int, default=1000)
+    ap.add_argument("--noise-classes", default="",
+                    help="comma-separated noise classes (white,ar1,steps,heavy): false "
+                         "alarms and detection at scaled strengths per class")
+    ap.add_argument("--mults", default="1,3",
+                    help="noise classes: multiples of the scaled 90 %% strength to run")
+    ap.add_argument("--session", type=int, default=0,
+                    help="time discover on a clean session of this many shots")
     args = ap.parse_args(argv)
+    if args.noise_classes or args.session:
+        res = {}
+        if args.noise_classes:
+            eff = [e for e in args.effects.split(",") if e in S90_WHITE]
+            res["noise_classes"] = noise_class_table(args.noise_classes.split(","),
+                                                     args.clean, args.trials, eff, args.seed0,
+                                                     mults=[float(m) for m in
+                                                            args.mults.split(",")])
+        if args.session:
+            res["session_cpu_s"] = session_cpu(args.session, args.seed0)
+        if args.json:
+            Path(args.json).write_text(json.dumps(res, indent=2, default=str))
+        return
     effects = [e for e in args.effects.split(",") if e]
     if args.grid:
         for e in effects:

@@ -9,7 +9,7 @@ import typer
 from ._app import app, check_outputs, guarded
 
 
-def parse_frame_list(text: str | None) -> list[int]:
+def parse_frame_list(text: str | None, where: str = "--exclude-frames") -> list[int]:
     """"1,2,5-9" -> [1, 2, 5, 6, 7, 8, 9]; raises ParameterError naming the bad item."""
     from ..errors import ParameterError
 
@@ -31,7 +31,7 @@ def parse_frame_list(text: str | None) -> list[int]:
                 out.append(v)
         except ValueError:
             raise ParameterError(f"bad frame or range {item!r} (use e.g. 1,2,5-9)",
-                                 where="--exclude-frames") from None
+                                 where=where) from None
     return out
 
 
@@ -52,6 +52,14 @@ def track(
     overlay: Path = typer.Option(None, "--overlay",
                                  help="Annotated video (grid, markers, centre, trajectory, "
                                  "x, y, theta)."),
+    frames: str = typer.Option(None, "--frames",
+                               help="With --debug-dir: frames to draw, e.g. 100,201 or 5-9."),
+    debug_dir: Path = typer.Option(None, "--debug-dir",
+                                   help="Folder for PNGs of what was found on --frames "
+                                   "(threads, markers, centre, trail, numbers)."),
+    corrections: Path = typer.Option(None, "--corrections",
+                                     help="JSON of clicked marker positions (px) and "
+                                     "excluded frames, e.g. downloaded from `review`."),
     no_progress: bool = typer.Option(False, "--no-progress", help="No progress bar."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
 ):
@@ -68,14 +76,22 @@ def track(
     from ..series import sidecar_path, write_series
     from ..track import track_video
 
-    check_outputs([video, rig], [("-o", output), ("-o (its sidecar)", sidecar_path(output)),
+    check_outputs([video, rig, corrections], [("-o", output), ("-o (its sidecar)", sidecar_path(output)),
                                  ("--overlay", overlay)])
     r = load_rig(rig)
     excl = parse_frame_list(exclude_frames)
+    debug = parse_frame_list(frames, where="--frames")
+    if (debug_dir is None) != (not debug):
+        from ..errors import ParameterError
+
+        raise ParameterError("--frames and --debug-dir go together", where="--debug-dir")
     series = track_video(video, r, start_frame=start_frame, end_frame=end_frame,
                          exclude_frames=excl, overlay_path=overlay,
-                         progress=not no_progress and sys.stderr.isatty())
-    series = series.with_meta(rig=str(rig))
+                         progress=not no_progress and sys.stderr.isatty(),
+                         debug_frames=debug, debug_dir=debug_dir, corrections=corrections)
+    # (`curltrack review` embeds the overlay)
+    series = series.with_meta(rig=str(rig), **({} if overlay is None else
+                                                {"overlay": str(overlay)}))
     side = write_series(output, series)
     if not quiet:
         m = series.meta
@@ -85,10 +101,14 @@ def track(
             return "none" if v is None else f"{v:.3f} {unit}"
 
         h = m.get("camera_height_m")
-        typer.echo(f"{n_ok}/{len(series.data)} frames measured; stop: translation "
-                   f"{fmt(m['t_stop_translation'])} (frame {m['stop_frame_translation']}), "
-                   f"rotation {fmt(m['t_stop_rotation'])} (frame {m['stop_frame_rotation']});"
-                   f" camera height {fmt(h, 'm')}")
+        def stop(kind):
+            t = m[f"t_stop_{kind}"]
+            return (f"{kind} not within the video" if t is None else
+                    f"{kind} {fmt(t)} (frame {m[f'stop_frame_{kind}']})")
+
+        typer.echo(f"{n_ok}/{len(series.data)} frames measured; stop: {stop('translation')}, "
+                   f"{stop('rotation')}; camera height "
+                   f"{fmt(h, 'm') if h is not None else 'not measured'}")
         for w in m.get("warnings", [])[:5]:
             typer.echo(f"warning: {w}", err=True)
         typer.echo(f"wrote {output} and {side}" + (f" and {overlay}" if overlay else ""))

@@ -10,6 +10,9 @@ Pipeline (one module per step):
 * :mod:`.candidates` -- the nested extensions (the simulator's effect terms);
 * :mod:`.search`, :mod:`.scoring` -- delta-BIC, look-elsewhere-calibrated thresholds
   (parametric block bootstrap), blocked and leave-one-shot-out cross-validation;
+* :mod:`.extend`     -- data-driven extensions of the equations (friction field along
+  the sheet, spin-speed couplings, the curl's dependence on the spin), scored like the
+  candidates, with a description and the fitted function;
 * :mod:`.report`     -- REPORT.json and the figure.
 
 Decision rule
@@ -22,7 +25,15 @@ family-wise level :data:`residuals.STRUCTURE_LEVEL`) and no other candidate come
 :data:`report.AMBIGUITY_MARGIN` of its delta-BIC; otherwise ``unexplained`` (with the
 rivals under ``unexplained.ambiguous`` when the evidence cannot tell them apart).  With
 no supported candidate: ``unexplained`` if the baseline residuals are structured, else
-``none``.
+``none``.  Delta-BIC, threshold and the structure after are measured under the noise
+the candidate's own residuals show (:func:`.search.rescore`: an instrument's persisting
+errors and heavy tails, which the AR(1) model misses).  A supported candidate with a
+parameter at its bound, or one that makes any coordinate's RMS or held-out RMS worse,
+is not named (``not_named_because``); a baseline parameter at its bound blocks any name.
+An extension (:mod:`.extend`) gives the verdict ``extended`` only when it
+is supported, its residuals look like noise, and it beats every named effect and every
+other extension by the same margin; a named effect that explains the data about as well
+keeps its name.
 """
 
 from __future__ import annotations
@@ -46,7 +57,8 @@ __all__ = ["discover", "write_report", "DiscoveryReport", "Finding"]
 
 
 def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
-             n_boot: int = scoring.N_BOOT, effects=None) -> DiscoveryReport:
+             n_boot: int = scoring.N_BOOT, effects=None,
+             extensions: bool = True) -> DiscoveryReport:
     """Find what the baseline model gets wrong in one or more measured shots.
 
     Parameters
@@ -64,13 +76,17 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     n_boot : int
         Bootstrap replicates per candidate.
     effects : list of str, optional
-        Restrict the candidates to these names.
+        Restrict the candidates to these names (extension kinds included).
+    extensions : bool
+        Also try the data-driven extension terms (:mod:`.extend`); verdict
+        ``extended`` when one of them, and no named effect, explains the residuals.
 
     Returns
     -------
     DiscoveryReport
         Frozen; ``summary()`` is the REPORT.json content (see the contract):
-        ``baseline``, ``findings`` sorted by ``delta_bic``, ``verdict``, plus ``noise``,
+        ``baseline``, ``findings`` sorted by ``delta_bic``, ``verdict``, ``extension`` (or None), plus
+        ``noise``,
         ``structure_before``, ``unexplained``, ``warnings`` and ``not_tested``.  It reads
         like that mapping too (``report["verdict"]``); its attributes are typed
         (``report.findings[0].delta_bic``) and carry the fitted models for the figure.
@@ -130,9 +146,17 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     h0_loso = heldout(fit0, f_shot, base) if f_shot is not None else None
 
     cands = build_candidates(shots, baseline)
+    if not extensions:
+        cands = [c for c in cands if not c.extension]
     if effects:
         cands = [c for c in cands if c.name in set(effects)]
-    scores = [score_candidate(base, fit0, c, seg_slices, rng, n_boot=n_boot) for c in cands]
+    from ..progress import progress_bar  # on a terminal only: the bootstrap takes seconds
+
+    scores = []
+    with progress_bar("discover: bootstrap of each candidate", len(cands)) as advance:
+        for c in cands:
+            scores.append(score_candidate(base, fit0, c, seg_slices, rng, n_boot=n_boot))
+            advance()
     # nonlinear refits of every candidate whose linear delta-BIC comes near its
     # threshold.  (The linear gain is exact near the null, where thresholds live, but can
     # underestimate a strong effect several-fold, so it never ranks candidates.)

@@ -131,6 +131,7 @@ class JointModel:
         rig = rig or default_rig()
         self.R, self.r_band = rig.inertia_radius_m, rig.band_radius_m
         self.shots, self.baseline, self.cand = shots, baseline, cand
+        self._sims: dict = {}
         self.values: dict = {}
         self.bounds: dict = {}
         self.free: list = []
@@ -220,7 +221,16 @@ class JointModel:
                                 alpha_y=v.get(f"alpha_y[{i}]", v["alpha_y"]),
                                 a_T=v["a_T"], R=self.R, r=self.r_band, **spin)
         eff = effects_for(self.cand, self._effect_values(v), i, self.shots)
-        tr = self._simulate(model, effects=eff, t=t)
+        # the frame offsets and skew (4 of a shot's 6 Jacobian columns) do not change the
+        # simulation: the last few per shot are reused (an extension's ODE costs ~50 ms)
+        key = (i, model, tuple((e.name, tuple(e.params.items())) for e in eff))
+        tr = self._sims.get(key) if t is s.t else None
+        if tr is None:
+            tr = self._simulate(model, effects=eff, t=t)
+            if t is s.t:
+                if len(self._sims) >= 4 * len(self.shots):
+                    self._sims.pop(next(iter(self._sims)))
+                self._sims[key] = tr
         c, sn = np.cos(v[f"skew[{i}]"]), np.sin(v[f"skew[{i}]"])
         x, y = np.asarray(tr.x), np.asarray(tr.y)
         return {"x": v[f"x0[{i}]"] + c * x - sn * y, "y": v[f"y0[{i}]"] + sn * x + c * y,

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._atomic import atomic_path, write_json
+from .extend import choose as choose_extension
+from .extend import extension_object
 from .residuals import binned_means
 from .results import DiscoveryReport, Finding
 from .shots import COORDS
@@ -128,7 +130,8 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
               rms_before=rms0, rms_after=None, heldout_rmse_before=h0["scalar"],
               heldout_rmse_after=None, heldout_before_by_coord={c: h0[c] for c in COORDS},
               params=sc.params, params_err=sc.params_err, note=sc.note, nfev=sc.nfev,
-              evidence=_evidence(sc, h0), fit=sc.fit)
+              evidence=_evidence(sc, h0), fit=sc.fit,
+              extension=True if getattr(sc, "extension", None) else None)
     if sc.fit is None:
         return Finding(**kw)
     kw.update(rms_after=_rms_by_coord(base, sc.fit.r_raw),
@@ -170,13 +173,22 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
     supported = [(sc, f) for sc, f in zip(scores, findings) if f.supported]
     blocked = [(sc, f) for sc, f in supported if f.not_named_because]
     supported = [(sc, f) for sc, f in supported if not f.not_named_because]
-    verdict, unexplained = "none", None
+    verdict, unexplained, extension = "none", None, None
     best_fit, best_model_name, best_params = fit0, None, {}
     ambiguous = []
-    if supported:
-        sc, f = max(supported, key=lambda p: p[0].delta_bic)
+    # a data-driven extension speaks only when it beats every named effect (discover.extend)
+    ext = None if base_bound else choose_extension(supported, scores, AMBIGUITY_MARGIN)
+    named = [sc for sc in scores if not sc.extension]
+    supported_named = [(sc, f) for sc, f in supported if not sc.extension]
+    if ext is not None:
+        verdict = "extended"
+        best_fit, best_model_name, best_params = ext.fit, ext.name, ext.params
+        extension = extension_object(ext, next(f for sc, f in supported if sc is ext).summary(),
+                                     shots, h0, h0_loso)
+    elif supported_named:
+        sc, f = max(supported_named, key=lambda p: p[0].delta_bic)
         best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
-        ambiguous = rivals(sc, scores)
+        ambiguous = rivals(sc, named)
         if base_bound:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
@@ -190,9 +202,11 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                                ambiguous=[sc.name] + ambiguous)
         else:
             verdict = sc.name
-    elif before.structured or blocked:
+    elif before.structured or blocked or supported:
         verdict = "unexplained"
         unexplained = dict(before.where or {}, after_model="baseline")
+        if len(supported) > 1:   # extensions that explain it alike: no one description
+            unexplained["ambiguous"] = [sc.name for sc, _ in supported]
         if blocked:
             unexplained["not_named"] = {sc.name: f.not_named_because for sc, f in blocked}
     if verdict == "unexplained":
@@ -226,7 +240,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                   "heldout_rmse": h0["scalar"],
                   "heldout_by_coord": {c: h0[c] for c in COORDS},
                   "loso_rmse": h0_loso["scalar"] if h0_loso else None},
-        unexplained=unexplained,
+        extension=extension, unexplained=unexplained,
         structure_before={"p_min_adjusted": before.p_min_adjusted,
                           "structured": before.structured, "where": before.where,
                           "tests": before.tests},
@@ -252,7 +266,8 @@ def plot_report(report: DiscoveryReport, path, max_shots: int = 2) -> None:
     One block of two rows per shot (at most ``max_shots``): the top row shows the data
     (dots), the baseline (line) and the extended model (dashed) for x, y (m) and theta
     (rad) against time; the bottom row their residuals (mm, mm, degrees) before (grey)
-    and after (colour) the extension.
+    and after (colour) the extension.  With a data-driven extension (verdict
+    ``extended``) a last row shows its fitted function with the 1-sigma band.
     """
     import matplotlib
 
@@ -262,7 +277,9 @@ def plot_report(report: DiscoveryReport, path, max_shots: int = 2) -> None:
     shots, model, ext = report.shot_data, report.model, report.extended
     fit0, fit1 = report.fit0, report.best_fit
     ns = min(len(shots), max_shots)
-    fig, axes = plt.subplots(2 * ns, 3, figsize=(13, 4.2 * ns), sharex="col", squeeze=False)
+    ext_obj = report.extension
+    fig, axes = plt.subplots(2 * ns + bool(ext_obj), 3, squeeze=False,
+                             figsize=(13, 4.2 * ns + (3.2 if ext_obj else 0.0)))
     scale = {"x": 1e3, "y": 1e3, "theta": np.degrees(1.0)}
     unit = {"x": "mm", "y": "mm", "theta": "deg"}
     for j in range(ns):
@@ -272,6 +289,9 @@ def plot_report(report: DiscoveryReport, path, max_shots: int = 2) -> None:
             use = s.use[c]
             t = s.t[use]
             top.plot(t, s.obs[c][use], ".", ms=2, color="k", alpha=0.5, label="data")
+            if len(t) == 0:  # not fitted (position-only theta): no model curve to show
+                top.text(0.5, 0.5, "not used", transform=top.transAxes, ha="center")
+                continue
             top.plot(s.t, fit0.predictions[j][c], "-", color="C0", lw=1.2,
                      label=f"baseline ({model.baseline})")
             if ext:
@@ -291,8 +311,14 @@ def plot_report(report: DiscoveryReport, path, max_shots: int = 2) -> None:
         axes[2 * j, 0].set_title(str(s.name).split("/")[-1], loc="left", fontsize=9)
         axes[2 * j, 0].legend(fontsize=7, loc="best")
         axes[2 * j + 1, 0].legend(fontsize=7, loc="best")
-    for ax in axes[-1]:
+    for ax in axes[2 * ns - 1]:
         ax.set_xlabel("t (s)")
+    if ext_obj:  # the fitted function of the extension with its band, full width
+        from .extend import plot_function
+
+        for ax in axes[-1]:
+            ax.remove()
+        plot_function(fig.add_subplot(axes[0, 0].get_gridspec()[-1, :]), ext_obj)
     fig.suptitle(f"verdict: {report.verdict}", fontsize=11)
     fig.tight_layout()
     with atomic_path(path) as tmp:

@@ -75,6 +75,7 @@ class Finding:
     loso_rmse_after: float | None = None
     structure_after: dict | None = None
     not_named_because: list | None = None
+    extension: bool | None = None
     where: dict | None = None
     fit: object = field(default=None, compare=False, repr=False)
 
@@ -96,6 +97,8 @@ class Finding:
         out["supported"] = self.supported
         if self.not_named_because is not None:
             out["not_named_because"] = self.not_named_because
+        if self.extension:
+            out["extension"] = True
         out["evidence"] = self.evidence
         return out
 
@@ -107,7 +110,7 @@ class DiscoveryReport(Mapping):
     Attributes
     ----------
     verdict : str
-        The named effect, ``"none"`` or ``"unexplained"``.
+        The named effect, ``"extended"``, ``"none"`` or ``"unexplained"``.
     findings : tuple of Finding
         Sorted by delta-BIC, largest first.
     baseline : dict
@@ -123,6 +126,8 @@ class DiscoveryReport(Mapping):
     warnings : list of str
     not_tested : dict
         Effects these shots cannot tell from the baseline, and why.
+    extension : dict or None
+        The data-driven extension of the equations (verdict ``extended``).
     shot_data, model, fit0, best_fit, extended, best_params
         The fitted objects behind the figure (not serialised): the prepared shots, the
         baseline model, its fit, the fit of the named (or best supported) extension, its
@@ -138,6 +143,7 @@ class DiscoveryReport(Mapping):
     shots: list
     warnings: list
     not_tested: dict = field(default_factory=dict)
+    extension: dict | None = None
     shot_data: list = field(default_factory=list, compare=False, repr=False)
     model: object = field(default=None, compare=False, repr=False)
     fit0: object = field(default=None, compare=False, repr=False)
@@ -148,7 +154,7 @@ class DiscoveryReport(Mapping):
     @property
     def success(self) -> bool:
         """A cause was named (the verdict is an effect)."""
-        return self.verdict not in ("none", "unexplained")
+        return self.verdict not in ("none", "unexplained")  # named or extended
 
     @property
     def bic(self) -> float:
@@ -159,7 +165,8 @@ class DiscoveryReport(Mapping):
         """The REPORT.json mapping (contract keys, in order; NaN/inf as the writer
         leaves them to :func:`curltrack._atomic.write_json`)."""
         return {"baseline": self.baseline, "findings": [f.summary() for f in self.findings],
-                "verdict": self.verdict, "unexplained": self.unexplained,
+                "verdict": self.verdict, "extension": self.extension,
+                "unexplained": self.unexplained,
                 "structure_before": self.structure_before, "noise": self.noise,
                 "shots": self.shots, "warnings": self.warnings,
                 "not_tested": self.not_tested}

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from .params import REQUIRED, Param
-from .terms import Terms
+from .terms import EXTENSION_KINDS, Extension, Terms
 
 
 
@@ -62,6 +62,12 @@ class Candidate:
     note: str = ""
     subsets: list | None = None
     effect: "EffectDef | None" = None
+    #: a data-driven extension (``discover.extend``), not a named effect
+    extension: bool = False
+    #: false-alarm level of its bootstrap threshold (None: discover's default)
+    level: float | None = None
+    #: nonlinear fits started from this many scan locations (None: discover's default)
+    n_starts: int | None = None
 
     @property
     def params(self) -> list:
@@ -264,7 +270,7 @@ def gather(effects) -> Terms:
     """
     effects = as_effects(effects)
     ax = ay = 0.0
-    patches, picks, overrides, gain = [], [], {}, None
+    patches, picks, overrides, gain, ext = [], [], {}, None, {}
     seen = set()
     for e in effects:
         defn = EFFECTS[e.name]
@@ -286,10 +292,15 @@ def gather(effects) -> Terms:
                 picks.append(value)
             elif kind == "friction_law":
                 overrides.update(value)
+            elif kind in EXTENSION_KINDS:
+                if kind in ext:
+                    raise ParameterError(f"a second {kind} term", where=f"effect {e.name}")
+                ext[kind] = value
             else:
                 raise ParameterError(f"unknown term kind {kind!r}", where=f"effect {e.name}")
     picks.sort(key=lambda q: q[0])
-    return Terms((ax, ay), tuple(patches), gain, tuple(picks), overrides)
+    return Terms((ax, ay), tuple(patches), gain, tuple(picks), overrides,
+                 Extension.from_terms(ext))
 
 
 # ---------------------------------------------------------------------------------------

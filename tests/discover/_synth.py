@@ -45,16 +45,33 @@ def draw_model(rng, spin=None, ice_kw=None, v0=(1.5, 2.2)) -> ShotModel:
                      **(ice_kw if ice_kw is not None else ice(rng)))
 
 
-def make_series(model, effects=(), rng=None, heading_deg=None):
+def make_series(model, effects=(), rng=None, heading_deg=None, instrument=None):
+    """One simulated series; ``instrument`` (dict: ``noise_class``, ``rate_hz``,
+    ``theta``) makes it look like another instrument's (noise at its class's typical
+    scale, :data:`curltrack.instrument.TYPICAL_SCALE`; below 30 Hz with jitter, a gap
+    and a first row up to 1 s after release)."""
     rng = rng or np.random.default_rng(0)
-    s = simulate_series(model, [Effect(n, p) for n, p in effects], noise_m=NOISE_M,
-                        noise_rad=NOISE_RAD, seed=int(rng.integers(2**31)))
+    if instrument:
+        from curltrack.instrument import TYPICAL_SCALE, Sampling
+
+        cls, rate = instrument.get("noise_class", "white"), instrument.get("rate_hz", 30.0)
+        irregular = rate < 30
+        sampling = Sampling(rate_hz=rate, jitter_s=0.1 / rate if irregular else 0.0,
+                            start_s=float(rng.uniform(0, 1)) if irregular else 0.0,
+                            n_gaps=int(irregular))
+        sm, sr = TYPICAL_SCALE[cls]
+        s = simulate_series(model, [Effect(n, p) for n, p in effects], noise_m=sm,
+                            noise_rad=sr, seed=int(rng.integers(2**31)), noise_class=cls,
+                            sampling=sampling, theta_measured=instrument.get("theta", True))
+    else:
+        s = simulate_series(model, [Effect(n, p) for n, p in effects], noise_m=NOISE_M,
+                            noise_rad=NOISE_RAD, seed=int(rng.integers(2**31)))
     if heading_deg is not None:
         s = s.with_meta(rink_heading_deg=heading_deg)
     return s
 
 
-def make_case(effect: str, strength: float, rng, n_shots: int = 1):
+def make_case(effect: str, strength: float, rng, n_shots: int = 1, instrument=None):
     """Shots with one hidden effect.
 
     Returns
@@ -108,6 +125,6 @@ def make_case(effect: str, strength: float, rng, n_shots: int = 1):
     elif effect != "none":
         raise ValueError(effect)
     # a pick happens in one shot; everything else is a property of the sheet
-    shots = [make_series(m, effects if (i == 0 or effect != "pick") else (), rng)
-             for i, m in enumerate(models)]
+    shots = [make_series(m, effects if (i == 0 or effect != "pick") else (), rng,
+                         instrument=instrument) for i, m in enumerate(models)]
     return shots, truth

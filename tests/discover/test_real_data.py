@@ -41,11 +41,11 @@ def clean_case(rng, noise_class, rate_hz, theta, n_shots=1):
                             sampling=sampling) for m in models]
 
 
-def _false_alarms(noise_class, n_cases, seed, sessions=False):
+def _false_alarms(noise_class, n_cases, seed, sessions=False, rates=(10.0, 30.0)):
     rng = np.random.default_rng(seed)
     bad = []
     for i in range(n_cases):
-        rate = float(rng.choice([10.0, 30.0]))
+        rate = float(rng.choice(rates))
         theta = bool(rng.random() < 0.5) if noise_class != "steps" else bool(rng.random() < 0.3)
         n_shots = int(rng.integers(3, 9)) if sessions else 1
         rep = discover(clean_case(rng, noise_class, rate, theta, n_shots), n_boot=200,
@@ -57,10 +57,12 @@ def _false_alarms(noise_class, n_cases, seed, sessions=False):
 
 @pytest.mark.parametrize("noise_class", NOISE_CLASSES)
 def test_clean_shots_give_none_under_each_noise_class(noise_class):
-    """Fast version: 2 clean single shots per class (10 or 30 Hz, with or without theta).
-    With a false-alarm rate of <= 5 % two alarms in two cases happen < 0.3 % of runs."""
+    """Fast version: 2 clean single shots per class (10 or 30 Hz -- steps at 10 Hz, the
+    slow tests take both -- with or without theta).  With a false-alarm rate of <= 5 %
+    two alarms in two cases happen < 0.3 % of runs."""
     seed = _entropy()
-    bad = _false_alarms(noise_class, 2, seed)
+    bad = _false_alarms(noise_class, 2, seed,
+                        rates=(10.0,) if noise_class == "steps" else (10.0, 30.0))
     assert len(bad) <= 1, f"seed {seed}: {bad}"
 
 
@@ -156,3 +158,36 @@ def test_position_only_cli_fit_and_discover(tmp_path):
     assert res.exit_code == 0, res.output
     fit = json.loads((tmp_path / "F.json").read_text())
     assert fit["lambda_theta"] is None and fit["lambda_y"] is not None
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=False, reason="issue 18's target, not met yet: the reduced bench "
+                   "named pick and friction_patch at 3x in 2/3 (white) and pick in 1/3 "
+                   "(heavy) of cases (README, 'On other instruments' data')")
+@pytest.mark.parametrize("noise_class", NOISE_CLASSES)
+@pytest.mark.parametrize("effect", ["pick", "friction_patch", "late_curl"])
+def test_hidden_effect_named_under_each_noise_class(effect, noise_class):
+    """Each vocabulary effect hidden at random place and sign, at 3x the README's 2 mm
+    90 % strength scaled by the class's noise scale (the 'moderate' strength of
+    test_discover), 10 Hz or 30 Hz, theta or not: named in >= 8 of 10 cases, never
+    another effect's name."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from _synth import make_case
+
+    s90 = {"pick": 0.002, "friction_patch": 0.08, "late_curl": 0.23}[effect]
+    strength = 3 * s90 * TYPICAL_SCALE[noise_class][0] / 0.002
+    seed = _entropy()
+    rng = np.random.default_rng(seed)
+    verdicts = []
+    for _ in range(10):
+        inst = {"noise_class": noise_class, "rate_hz": float(rng.choice([10.0, 30.0])),
+                "theta": bool(rng.random() < 0.5)}
+        shots, truth = make_case(effect, strength, rng, instrument=inst)
+        verdicts.append(discover(shots, baseline=truth["baseline"], n_boot=200,
+                                 seed=int(rng.integers(1 << 30)))["verdict"])
+    named = sum(v == effect for v in verdicts)
+    wrong = [v for v in verdicts if v not in (effect, "none", "unexplained")]
+    assert named >= 8 and not wrong, f"seed {seed}: strength {strength:g}: {verdicts}"

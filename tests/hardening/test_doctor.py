@@ -71,27 +71,33 @@ def test_unreadable_video_is_fatal(cli, hdir, rig_file, good_clip):
 
 
 @pytest.mark.parametrize("factor", [1.3, 0.7])
-def test_wrong_marker_layout_flags_the_camera_height(cli, hdir, good_clip, factor):
-    """Markers placed 30 % off in the rig: the parallax gives an implausible height."""
+def test_wrong_marker_layout_is_fatal(cli, hdir, good_clip, factor):
+    """Markers placed 30 % off in the rig: the parallax would scale every position wrong
+    (it was a warning); the rock's outline agrees with the grid, so the markers are
+    named."""
     video, _, rig = good_clip
     bad = replace(rig, markers=tuple(Marker(m.color, m.x_m * factor, m.y_m * factor)
                                      for m in rig.markers))
     p = hdir / f"doctor_layout{factor}.toml"
     p.write_text(bad.to_toml())
-    data = json.loads(cli.succeeds("doctor", video, "--rig", p, "--json", "--samples", "3")
-                      .stdout)
-    assert _status(data)["camera_height"] == "warn"
+    res = cli("doctor", video, "--rig", p, "--json", "--samples", "3")
+    data = json.loads(res.stdout)
+    assert res.exit_code == 1 and _status(data)["camera_height"] == "fail"
     assert _status(data)["markers"] == "ok"
+    check = next(c for c in data["checks"] if c["name"] == "camera_height")
+    assert "[[markers]]" in check["detail"], check
 
 
-def test_rig_camera_height_disagreeing(cli, hdir, good_clip):
+def test_rig_camera_height_disagreeing_is_fatal(cli, hdir, good_clip):
     video, truth, rig = good_clip
     H = float(truth.data["camera_height_m"].iloc[0])
     p = hdir / "doctor_height.toml"
     p.write_text(replace(rig, camera_height_m=round(2.5 * H, 2)).to_toml())
-    data = json.loads(cli.succeeds("doctor", video, "--rig", p, "--json", "--samples", "3")
-                      .stdout)
-    assert _status(data)["camera_height"] == "warn"
+    res = cli("doctor", video, "--rig", p, "--json", "--samples", "3")
+    data = json.loads(res.stdout)
+    assert res.exit_code == 1 and _status(data)["camera_height"] == "fail"
+    check = next(c for c in data["checks"] if c["name"] == "camera_height")
+    assert "[camera].height_m" in check["detail"], check
 
 
 @pytest.mark.parametrize("band,status", [((0.1, 0.6), "ok"), ((2.0, 4.0), "warn"),

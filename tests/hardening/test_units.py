@@ -124,3 +124,19 @@ def test_datetime_and_semicolon_csv_name_the_cause(cli, tmp_path):
     g = tmp_path / "semi.csv"
     d.to_csv(g, index=False, sep=";")
     cli.fails("fit", g, "-o", out, output=out, names=[g, "';'"])
+
+
+def test_position_only_and_irregular_series_are_not_flagged(seed):
+    """Instruments without theta (empty column), jittered and gappy sampling: valid."""
+    rng = np.random.default_rng(seed)
+    s = _shot(seed)
+    d = s.data.copy()
+    keep = np.sort(rng.choice(len(d), size=len(d) // 3, replace=False))
+    d = d.iloc[keep].reset_index(drop=True)
+    d["t"] += rng.uniform(-0.004, 0.004, len(d))
+    d = d[np.diff(np.r_[-1.0, d["t"].to_numpy()]) > 0].reset_index(drop=True)
+    d["theta"] = np.nan
+    assert check_units(Series(d, {})) == [], seed
+    d["x"] *= 1000.0
+    with pytest.raises(Exception, match="millimetres"):
+        check_units(Series(d, {}))
