@@ -71,10 +71,9 @@ def main(argv=None):
     a1.set_xlabel("y along the sheet (m)")
     a1.set_ylabel("friction multiplier")
     a1.legend(fontsize=8, loc="upper right")
-    p = rep["_plot"]
-    for j, s in enumerate(p["shots"]):
+    for j, s in enumerate(rep.shot_data):
         use = s.use["y"]
-        for fit, style, lab in ((p["fit0"], ".", "baseline"), (p["fit1"], "o", "extended")):
+        for fit, style, lab in ((rep.fit0, ".", "baseline"), (rep.best_fit, "o", "extended")):
             r = (s.obs["y"] - fit.predictions[j]["y"])[use] * 1e3
             a2.plot(s.obs["y"][use], r, style, ms=1.5 if style == "." else 1.2,
                     color=f"C{j}", alpha=0.35 if lab == "baseline" else 0.9,

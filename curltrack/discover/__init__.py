@@ -2,8 +2,8 @@
 
 Pipeline (one module per step):
 
-* :mod:`.shots`      -- measured rows, stop times, starting values; :mod:`.noise` --
-  the measurement noise (sigma and AR(1) correlation) of every coordinate, from the data;
+* :mod:`.shots`      -- measured rows, stop times and noise (the series layer,
+  :mod:`curltrack.series`), starting values;
 * :mod:`.model`      -- the baseline (the paper's model, or ``dry`` with phi = 0) fitted
   jointly to all shots with :func:`curltrack.physics.simulate`;
 * :mod:`.residuals`  -- structure tests on the baseline's whitened residuals;
@@ -47,16 +47,18 @@ from ..errors import InputError
 from . import scoring
 from .candidates import build_candidates, untested
 from .model import JointModel
+from .results import DiscoveryReport, Finding
 from .residuals import structure_tests
 from .search import (NONLINEAR_MARGIN, block_lengths, folds_shot, folds_time, heldout,
                      refine_candidate, rescore, residual_noise, score_candidate, segments_of)
 from .shots import shot_from_series
 
-__all__ = ["discover", "write_report"]
+__all__ = ["discover", "write_report", "DiscoveryReport", "Finding"]
 
 
 def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
-             n_boot: int = scoring.N_BOOT, effects=None, extensions: bool = True) -> dict:
+             n_boot: int = scoring.N_BOOT, effects=None,
+             extensions: bool = True) -> DiscoveryReport:
     """Find what the baseline model gets wrong in one or more measured shots.
 
     Parameters
@@ -81,16 +83,28 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
 
     Returns
     -------
-    dict
-        The REPORT.json content (see the contract): ``baseline``, ``findings`` sorted by
-        ``delta_bic``, ``verdict``, ``extension`` (or None), plus ``noise``, ``structure_before``, ``unexplained``
-        and ``warnings``.  Private keys starting with ``_`` carry the fitted objects for
-        the plot and are not serialised.
+    DiscoveryReport
+        Frozen; ``summary()`` is the REPORT.json content (see the contract):
+        ``baseline``, ``findings`` sorted by ``delta_bic``, ``verdict``, ``extension`` (or None), plus
+        ``noise``,
+        ``structure_before``, ``unexplained``, ``warnings`` and ``not_tested``.  It reads
+        like that mapping too (``report["verdict"]``); its attributes are typed
+        (``report.findings[0].delta_bic``) and carry the fitted models for the figure.
 
     Raises
     ------
     CurltrackError
         Unreadable or unusable input (one line naming the file and field).
+
+    Examples
+    --------
+    >>> from curltrack import Effect, ShotModel, discover, simulate_series
+    >>> patch = Effect("friction_patch", {"y_start_m": 8.0, "y_end_m": 12.0, "factor": 1.3})
+    >>> s = simulate_series(ShotModel(v0=2.0, omega0=1.5), [patch], noise_m=0.002,
+    ...                     noise_rad=0.005, seed=1)
+    >>> rep = discover(s)                                          # doctest: +SKIP
+    >>> rep.verdict, rep.findings[0].params["factor"]              # doctest: +SKIP
+    ('friction_patch', 1.29...)
     """
     from ..sanity import bound_rows, check_units
     from ..series import Series, read_series
@@ -112,7 +126,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
                                  f"{len(s.data) + 1}")
     unit_warnings = [w for s in sers for w in check_units(s)]  # raises on a unit mistake
     sers, thinned = bound_rows(sers)  # bounded memory: at most DISCOVER_MAX_ROWS rows
-    shots = [shot_from_series(s) for s in sers]
+    shots = [shot_from_series(s, rig) for s in sers]
     names = ", ".join(s.name for s in sers)
     rng = np.random.default_rng(seed)
 
@@ -180,14 +194,32 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
         if sc.fit is not None:
             cand_bounds[sc.name] = at_bound(sc.fit, sc._model.bounds,
                                             [p.name for p in by_name[sc.name].params])
-    report = build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds)
-    report["not_tested"] = untested(shots, baseline)
-    report["warnings"] = [*unit_warnings, *thinned, *report.get("warnings", [])]
-    return report
+    return build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds,
+                        not_tested=untested(shots, baseline),
+                        warnings=[*unit_warnings, *thinned])
 
 
-def write_report(report: dict, path, plot=None) -> None:
-    """Write REPORT.json (and the figure) atomically."""
+def write_report(report: DiscoveryReport, path, plot=None) -> None:
+    """Write REPORT.json (and the figure) atomically.
+
+    Parameters
+    ----------
+    report : DiscoveryReport
+        From :func:`discover`; the file is ``report.summary()`` (NaN/inf as null).
+    path : str or Path
+        REPORT.json.
+    plot : str or Path, optional
+        PNG of data, baseline, extended model and residuals per shot and coordinate.
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    >>> from curltrack import discover, write_report
+    >>> write_report(discover("shot.csv"), "report.json", plot="report.png")  # doctest: +SKIP
+    """
     from .report import plot_report, write_json_report
 
     write_json_report(report, path)

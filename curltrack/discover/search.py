@@ -366,7 +366,7 @@ def segments_of(model: JointModel, fit: FitOut, noise=None):
 def residual_noise(model: JointModel, r) -> list:
     """``(inflation, tau)`` of each segment's whitened residuals ``r``
     (:func:`.noise.residual_structure`)."""
-    from .noise import residual_structure
+    from ..series.noise import residual_structure
 
     return [residual_structure(r[sl], model.shots[j].t[model.shots[j].use[c]])
             for j, c, sl in model.segments]

@@ -20,41 +20,11 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..errors import ParameterError
+from .params import REQUIRED, Param
 from .terms import EXTENSION_KINDS, Extension, Terms
 
-_REQUIRED = object()
 
 
-@dataclass(frozen=True)
-class Param:
-    """One parameter of an effect (or one a discovery candidate fits).
-
-    Attributes
-    ----------
-    name : str
-        Contract name (units in the name where it has some).
-    default : float, None or REQUIRED
-        Value when not given; :data:`REQUIRED` if it must be given, None if optional.
-    unit : str
-        For messages and reports.
-    null : float
-        Value at which the effect vanishes (size parameters; the fit starts there).
-    lower, upper : float or None
-        Bounds in discovery's fits.
-    step : float or None
-        Finite-difference step of discovery's Jacobian (None: relative 1e-4).
-    """
-
-    name: str
-    default: object = None
-    unit: str = ""
-    null: float = 0.0
-    lower: float | None = None
-    upper: float | None = None
-    step: float | None = None
-
-
-REQUIRED = _REQUIRED
 
 
 @dataclass
@@ -212,7 +182,7 @@ def effect_parameters(name: str) -> dict[str, object]:
     if name not in EFFECTS:
         raise ParameterError(f"unknown effect {name!r}; expected one of {sorted(EFFECTS)}",
                              where="effect")
-    return {p.name: ("required" if p.default is _REQUIRED else p.default)
+    return {p.name: ("required" if p.default is REQUIRED else p.default)
             for p in EFFECTS[name].params}
 
 

@@ -354,6 +354,12 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         Unreadable/truncated video, bad frame range.
     TrackingError
         No markers of the rig's colours, no grid, or the rock never measurable.
+
+    Examples
+    --------
+    >>> from curltrack import load_rig, track_video, write_series
+    >>> series = track_video("shot.mp4", load_rig("fixtures/rig.toml"))  # doctest: +SKIP
+    >>> write_series("shot.csv", series)                                # doctest: +SKIP
     """
     from ..video import decoder_threads, iter_frames, probe_video
     from .results import build_series

@@ -13,7 +13,7 @@ from .outline import scale_check
 from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, correct_parallax,
                        estimate_height, focal_for_height, layout_scale_mismatch)
 from .shotframe import to_shot_frame
-from .stops import detect_stops
+from ..series.stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
 
