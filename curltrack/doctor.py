@@ -194,8 +194,8 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
                                 "re-export the video (H.264 mp4) or check the file"))
         return rep
     rep.checks.append(Check(
-        "video", "ok", f"{info.codec or '?'} {info.width}x{info.height}, {info.n_frames} "
-        f"frames, {info.duration_s:.2f} s", values=asdict(info)))
+        "video", "ok", f"{info.describe()}; {info.n_frames} frames, {info.duration_s:.2f} s",
+        values=asdict(info)))
     fps_src = "container" + (", the rig's fps agrees" if rig.fps else "")
     if info.fps < MIN_FPS:
         rep.checks.append(Check("fps", "warn", f"{info.fps:.3g} frames/s ({fps_src})",

@@ -13,6 +13,16 @@ Conventions
 Still images (PNG, JPEG, ...) are accepted by :func:`read_frame` so that ``calibrate``
 works on a single photograph.
 
+Two decoders: OpenCV's (``cv2.VideoCapture``, the fast default for progressive video)
+and FFmpeg through PyAV, used when the stream is interlaced (OpenCV 5 decodes H.264
+flagged interlaced as all-black frames: its scaler refuses interlaced -> progressive)
+or OpenCV's first frame is black where PyAV's is not.  :func:`probe_video` says which
+(``VideoInfo.decoder``), with the container format, the codec, the field order and the
+rotation tag.  With ``fields=True`` an interlaced frame is yielded as its two fields,
+each its own exposure (``Frame.field`` 0 = the field exposed first, ``Frame.t`` that
+field's time: the frame's plus half a frame period for the second), each resampled to
+the frame's full height with its lines where they were on the sensor.
+
 Frames are decoded one at a time; no function here holds more than one frame.
 """
 
@@ -54,6 +64,21 @@ class VideoInfo:
         FourCC code (e.g. ``"avc1"``, ``"FMP4"``).
     duration_s : float
         ``n_frames / fps``.
+    container : str
+        Container format as FFmpeg names it (e.g. ``"mov,mp4,m4a,3gp,3g2,mj2"``,
+        ``"dv"``), "" without PyAV.
+    codec_name : str
+        FFmpeg's codec name (``"h264"``, ``"hevc"``, ``"dvvideo"``, ``"mpeg2video"``),
+        "" without PyAV.
+    interlaced : bool
+        The first frame is flagged interlaced (two fields woven, exposed half a frame
+        period apart).
+    top_field_first : bool
+        Field order of an interlaced stream (the field of the even lines first).
+    rotation_deg : int
+        The container's display rotation tag (deg), 0 when none.
+    decoder : str
+        ``"opencv"`` or ``"pyav"``: what :func:`iter_frames` will use.
     """
 
     path: str
@@ -63,15 +88,42 @@ class VideoInfo:
     height: int
     codec: str
     duration_s: float
+    container: str = ""
+    codec_name: str = ""
+    interlaced: bool = False
+    top_field_first: bool = True
+    rotation_deg: int = 0
+    decoder: str = "opencv"
+
+    def describe(self) -> str:
+        """One line: format, size, rate, scan and what will be done with it."""
+        scan = (f"interlaced ({'top' if self.top_field_first else 'bottom'} field first)"
+                if self.interlaced else "progressive")
+        rot = f", rotation tag {self.rotation_deg} deg" if self.rotation_deg else ""
+        fmt = self.codec_name or self.codec or "?"
+        return (f"{fmt} in {self.container.split(',')[0] or '?'}, {self.width}x{self.height},"
+                f" {self.fps:.3f} fps, {scan}{rot}; decoded by "
+                f"{'FFmpeg (PyAV)' if self.decoder == 'pyav' else 'OpenCV'}"
+                + ("; each field measured as its own exposure (2 rows per frame)"
+                   if self.interlaced else ""))
 
 
 @dataclass(frozen=True)
 class Frame:
-    """One decoded frame: ``index`` (0-based in the file), ``t`` (s), ``image`` (BGR uint8)."""
+    """One decoded frame: ``index`` (0-based in the file), ``t`` (s), ``image`` (BGR uint8).
+
+    ``field`` is None for a whole frame, else 0/1: the field exposed first/second.
+    """
 
     index: int
     t: float
     image: np.ndarray
+    field: int | None = None
+
+    @property
+    def sample(self) -> int:
+        """Running index of the exposure: the frame index, or 2 x frame + field."""
+        return self.index if self.field is None else 2 * self.index + self.field
 
 
 def decoder_threads() -> int:
@@ -129,6 +181,34 @@ def _open(path):
     return cap
 
 
+def _av_probe(path) -> dict:
+    """What FFmpeg (PyAV) says of the first video frame: format, codec, scan, rotation.
+
+    {} without PyAV or when it cannot decode the file (OpenCV's checks then decide).
+    """
+    try:
+        import av
+    except ImportError:
+        return {}
+    try:
+        with av.open(str(path)) as c:
+            st = c.streams.video[0]
+            cc = st.codec_context
+            for fr in c.decode(st):
+                img = fr.to_ndarray(format="gray")
+                # AVFieldOrder: 2 TT, 3 BB, 4 TB (top coded first, bottom shown first),
+                # 5 BT; frames flagged interlaced with an unknown order: top first
+                order = int(getattr(cc, "field_order", 0) or 0)
+                return {"container": c.format.name, "codec_name": cc.name,
+                        "interlaced": bool(fr.interlaced_frame),
+                        "top_field_first": order not in (3, 5),
+                        "rotation_deg": int(round(getattr(fr, "rotation", 0) or 0)) % 360,
+                        "peak": int(img.max())}
+    except Exception:  # noqa: BLE001 - any FFmpeg failure: OpenCV's checks report it
+        return {}
+    return {}
+
+
 def probe_video(path, fps_override: float | None = None, check_end: bool = True) -> VideoInfo:
     """Open a video and check codec, frame count, frame size and fps up front.
 
@@ -179,6 +259,9 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
         elif not _usable_fps(fps):
             raise VideoError(f"container gives no usable frame rate ({fps!r}); set "
                              "[camera].fps in the rig", path=path)
+        av_info = _av_probe(path)
+        black = int(img.max()) < 8 and av_info.get("peak", 0) >= 8
+        decoder = "pyav" if av_info and (av_info["interlaced"] or black) else "opencv"
         if check_end and n > 1:
             cap.set(cv2.CAP_PROP_POS_FRAMES, n - 1)
             ok, img = cap.read()
@@ -193,11 +276,14 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
                                  where=f"frame {n - 1}")
     finally:
         cap.release()
-    return VideoInfo(str(path), n, fps, w, h, codec, n / fps)
+    extra = {k: av_info[k] for k in ("container", "codec_name", "interlaced",
+                                     "top_field_first", "rotation_deg") if k in av_info}
+    return VideoInfo(str(path), n, fps, w, h, codec, n / fps, decoder=decoder, **extra)
 
 
 def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
-                fps_override: float | None = None):
+                fps_override: float | None = None, decoder: str | None = None,
+                fields: bool = False):
     """Yield :class:`Frame` objects one at a time, from ``start`` up to ``end`` (exclusive).
 
     Parameters
@@ -214,6 +300,12 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
         The rig's ``[camera].fps``: the time is ``(index - start) / fps_override`` only
         when the container gives no frame rate (checked by :func:`check_rig_fps`
         otherwise).
+    decoder : {"opencv", "pyav"}, optional
+        Default: what :func:`probe_video` chooses (PyAV for interlaced streams and
+        where OpenCV decodes black frames).
+    fields : bool
+        Yield each interlaced frame as its two fields (PyAV); progressive frames are
+        yielded whole.
 
     Raises
     ------
@@ -229,6 +321,11 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
     if end is not None and int(end) <= start:
         raise VideoError(f"end frame {end} is not after start frame {start}", path=path)
     exclude = {int(i) for i in exclude}
+    if decoder is None:
+        decoder = probe_video(path, check_end=False).decoder
+    if decoder == "pyav" or fields:
+        yield from _iter_pyav(path, start, end, exclude, fps_override, fields)
+        return
     cap = _open(path)
     try:
         n = int(round(cap.get(cv2.CAP_PROP_FRAME_COUNT)))
@@ -276,6 +373,104 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
             index += 1
     finally:
         cap.release()
+
+
+def field_image(half, parity: int) -> np.ndarray:
+    """One field (its own lines only, BGR), resampled to the frame's full height.
+
+    The field's lines (frame rows ``parity``, ``parity + 2``, ...) keep their place on
+    the sensor: output row y samples field row (y - parity) / 2 (linear interpolation).
+    """
+    import cv2
+
+    h, w = 2 * half.shape[0], half.shape[1]
+    M = np.array([[1.0, 0.0, 0.0], [0.0, 0.5, -0.5 * parity]])
+    return cv2.warpAffine(half, M, (w, h), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_REPLICATE)
+
+
+def _field_halves(fr) -> dict:
+    """{parity: the field's own lines as BGR} of an interlaced PyAV frame.
+
+    4:2:0 chroma of interlaced video is subsampled per field (chroma row j belongs to
+    field j % 2): each field is converted from its own luma and chroma rows, so that a
+    moving rock's colours are not blended across the two exposures.
+    """
+    import cv2
+
+    if fr.format.name in ("yuv420p", "yuvj420p") and fr.height % 4 == 0 and fr.width % 2 == 0:
+        a = fr.to_ndarray()  # I420: Y (h rows), then U and V (h/4 rows of w each)
+        h, w = fr.height, fr.width
+        Y = a[:h]
+        U = a[h:h + h // 4].reshape(h // 2, w // 2)
+        V = a[h + h // 4:].reshape(h // 2, w // 2)
+        return {p: cv2.cvtColor(np.vstack([Y[p::2], U[p::2].reshape(h // 8, w),
+                                           V[p::2].reshape(h // 8, w)]),
+                                cv2.COLOR_YUV2BGR_I420) for p in (0, 1)}
+    img = fr.to_ndarray(format="bgr24")
+    return {p: np.ascontiguousarray(img[p::2]) for p in (0, 1)}
+
+
+def _iter_pyav(path, start, end, exclude, fps_override, fields):
+    """:func:`iter_frames` through FFmpeg (PyAV): frames (or fields) with pts times."""
+    import av
+
+    _open(path).release()  # (the same up-front checks and messages)
+    try:
+        container = av.open(str(path))
+    except Exception as exc:  # noqa: BLE001
+        raise VideoError(f"cannot open as a video ({exc})", path=path) from None
+    try:
+        st = container.streams.video[0]
+        st.thread_count = max(decoder_threads(), 1)
+        fps = float(st.average_rate or st.guessed_rate or 0)
+        check_rig_fps(fps, fps_override, path)
+        if _usable_fps(fps):
+            fps_override = None  # time from the container, always
+        elif fps_override is not None:
+            fps = float(fps_override)
+        else:
+            raise VideoError(f"container gives no usable frame rate ({fps!r}); set "
+                             "[camera].fps in the rig", path=path)
+        order = int(getattr(st.codec_context, "field_order", 0) or 0)
+        first = (1, 0) if order in (3, 5) else (0, 1)  # parities, in exposure order
+        t0 = None
+        index = -1
+        prev = -np.inf
+        try:
+            for fr in container.decode(st):
+                index += 1
+                if end is not None and index >= int(end):
+                    break
+                t = float(fr.time) if fr.time is not None else np.nan
+                if not np.isfinite(t) or t <= prev:
+                    t = prev + 1.0 / fps if np.isfinite(prev) else index / fps
+                prev = t
+                if index < start or index in exclude:
+                    if index == start:
+                        t0 = t
+                    continue
+                if t0 is None:
+                    t0 = t
+                rel = ((index - start) / float(fps_override) if fps_override is not None
+                       else t - t0)
+                if fields and fr.interlaced_frame:
+                    period = 1.0 / fps
+                    halves = _field_halves(fr)
+                    for k, parity in enumerate(first):
+                        yield Frame(index, rel + 0.5 * k * period,
+                                    field_image(halves[parity], parity), k)
+                else:
+                    yield Frame(index, rel, fr.to_ndarray(format="bgr24"))
+        except av.FFmpegError as exc:
+            raise VideoError(f"video is truncated or corrupt: decoding stopped at frame "
+                             f"{index + 1} ({exc})", path=path,
+                             where=f"frame {index + 1}") from None
+        if index < start:
+            raise VideoError(f"start frame {start} is beyond the last frame ({index})",
+                             path=path)
+    finally:
+        container.close()
 
 
 def read_frame(path, index: int = 0) -> np.ndarray:

@@ -14,7 +14,11 @@ STAMP="$VENV/.installed${EXTRAS:+-$EXTRAS}"
 if [ ! -f "$STAMP" ] || [ "$ROOT/pyproject.toml" -nt "$STAMP" ]; then
   echo "[curltrack] installing curltrack${EXTRAS:+[$EXTRAS]} and its dependencies" >&2
   "$VENV/bin/python" -m pip install -q --upgrade pip >&2
-  "$VENV/bin/python" -m pip install -q -e "$ROOT${EXTRAS:+[$EXTRAS]}" >&2
+  # editable_mode=compat: the clone's root on sys.path (a .pth), so `import curltrack` also
+  # works from the folder that holds the clone (there, the clone's own folder "curltrack"
+  # would otherwise be taken for an empty namespace package)
+  "$VENV/bin/python" -m pip install -q -e "$ROOT${EXTRAS:+[$EXTRAS]}" \
+    --config-settings editable_mode=compat >&2
   touch "$STAMP"
 fi
 export PATH="$VENV/bin:$PATH"

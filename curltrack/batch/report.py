@@ -176,11 +176,38 @@ def write_report(table: pd.DataFrame, outdir) -> Path:
             plt.close(fig)
         images[name] = path.relative_to(outdir).as_posix()
     page = outdir / "report.html"
-    write_text(page, _html(table, images, points))
+    write_text(page, _html(table, images, points, _review_pages(table, outdir)))
     return page
 
 
-def _html(table: pd.DataFrame, images: dict, points: dict) -> str:
+def _review_pages(table: pd.DataFrame, outdir: Path) -> dict:
+    """``<shot_id>/REVIEW.html`` for every fitted shot (plotly.js shared, in report/)."""
+    from ..errors import CurltrackError
+    from ..review import write_review
+
+    done = table[table.get("status", pd.Series(dtype=str)) == "done"]
+    if "shot_id" not in done or not len(done):
+        return {}
+    from plotly.offline import get_plotlyjs
+
+    js = outdir / "report" / "plotly.min.js"
+    write_text(js, get_plotlyjs())
+    pages = {}
+    for sid in done["shot_id"].astype(str):
+        shot, rep = outdir / sid / "SHOT.csv", outdir / sid / "REPORT.json"
+        if not shot.exists():
+            continue
+        try:
+            write_review(shot, outdir / sid / "REVIEW.html",
+                         report_path=rep if rep.exists() else None,
+                         plotlyjs_src="../report/plotly.min.js")
+        except CurltrackError:  # the campaign page still lists the shot, without a link
+            continue
+        pages[sid] = f"{sid}/REVIEW.html"
+    return pages
+
+
+def _html(table: pd.DataFrame, images: dict, points: dict, reviews: dict | None = None) -> str:
     status = table.get("status", pd.Series(dtype=str))
     n_done, n_failed = int((status == "done").sum()), int((status == "failed").sum())
     done = table[status == "done"]
@@ -202,6 +229,11 @@ def _html(table: pd.DataFrame, images: dict, points: dict) -> str:
         parts.append("<h2>Fitted shots</h2>")
         parts.append(done[cols].to_html(index=False, float_format=lambda v: f"{v:.4g}",
                                         na_rep="", escape=True))
+    if reviews:
+        parts.append("<h2>Review pages</h2><p>Each shot's series, fit, residuals and "
+                     "per-frame quality in the browser: " + ", ".join(
+                         f"<a href='{html.escape(src)}'>{html.escape(sid)}</a>"
+                         for sid, src in reviews.items()) + "</p>")
     if len(failed):
         parts.append("<h2>Failed shots</h2>")
         parts.append(failed[[c for c in ("shot_id", "file", "error") if c in failed.columns]]

@@ -17,7 +17,14 @@ Per frame:
    (or says by how many cells it slipped, when only one shift fits the motion).
 
 Otherwise the pose is returned with ``ok = False`` and a message, never a silent jump by
-a cell; the next frames are predicted from the last trusted poses.  Motion blur across
+a cell; the next frames are predicted from the last trusted poses.
+
+The colours tell the index only modulo the number of colours, and a prediction made
+across a gap (more than ``STALE_FRAMES`` frames without a grid, while camera and rock may
+have moved many cells) can be off by whole cells however well the snap fits.  Such a
+pose starts a new *segment* (``GridPose.segment``): the cell index is continuous within
+a segment, and the offset between segments is left to evidence from outside the grid
+(:mod:`curltrack.track.segments`: the rock's path across the gap).  Motion blur across
 a family of threads (the camera moves up to ~0.1 m per frame) is handled by longer
 profiles, a blur-length detection filter and averaging along whole threads.
 """
@@ -125,6 +132,10 @@ class GridPose(PlaneMap):
         Rough 1-sigma uncertainty of the homography at the image centre (px).
     jump_cells : (float, float)
         Snap correction relative to the motion prediction (cells, x and y family).
+    segment : int
+        Continuity segment of the cell index: poses of one segment share it; a new
+        segment starts where the index was carried over a gap or fixed by the thread
+        colours alone (its offset from the others in whole cells is unknown here).
     """
 
     index: int
@@ -138,6 +149,7 @@ class GridPose(PlaneMap):
     n_threads: int = 0
     sigma_px: float = float("nan")
     jump_cells: tuple = (0.0, 0.0)
+    segment: int = 0
     notes: list = field(default_factory=list)
 
 
@@ -167,6 +179,7 @@ class GridTracker:
         self._centre_h = np.append(c, 1.0)  # principal point, homogeneous
         self._pred_err_px = 0.0  # running size of the prediction error (px)
         self._rms_px: list[float] = []  # fit residuals of the last accepted frames (px)
+        self.segment = 0  # continuity segment of the cell index (see GridPose.segment)
 
     # -- prediction ------------------------------------------------------------------
     def _predict(self, index: int) -> np.ndarray:
@@ -353,6 +366,13 @@ class GridTracker:
             pose.message = (f"cell index ambiguous: the grid moved {np.max(unchecked):.2f} "
                             "cells more than predicted and the thread colours cannot tell")
             return pose
+        last = self._history[-1][0]
+        if ((last is not None and index - last > STALE_FRAMES) or np.any(k != 0)
+                or np.max(np.abs(jump)) > AMBIGUOUS_CELLS):
+            # the index rests on a stale prediction or on the colours (modulo their
+            # number): continuous from here on, but its offset is not known here
+            self.segment += 1
+        pose.segment = self.segment
         err = float(np.hypot(*(np.asarray(jump) * (pa, pb))))
         self._pred_err_px = 0.5 * self._pred_err_px + 0.5 * err
         self._rms_px = (self._rms_px + [info["rms_px"]])[-POOR_FIT_FRAMES:]

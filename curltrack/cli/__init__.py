@@ -10,14 +10,17 @@ from __future__ import annotations
 import importlib
 import pkgutil
 
-from ._app import app
+from ._app import app, stdout_closed
 
 for _mod in sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_")):
     importlib.import_module(f"{__name__}.{_mod}")
 
 
 def main():  # console-script entry point
-    app()
+    try:
+        app()
+    except BrokenPipeError:  # --help or a summary piped into `head`
+        stdout_closed()
 
 
 __all__ = ["app", "main"]

@@ -25,6 +25,25 @@ app = typer.Typer(
 )
 
 
+def _plain_flags() -> None:
+    """--help: no ``<bool>`` type after plain flags (``--quiet``, ``--help``); typer >= 0.2x
+    prints every option's type, which for a flag that takes no value only misleads."""
+    from typer.core import TyperOption
+
+    show = getattr(TyperOption, "display_type_rich", None)
+    if show is None or getattr(show, "_curltrack", False):
+        return
+
+    def display_type_rich(self, ctx):
+        return None if self.is_flag and self.metavar is None else show(self, ctx)
+
+    display_type_rich._curltrack = True
+    TyperOption.display_type_rich = display_type_rich
+
+
+_plain_flags()
+
+
 def fail(message: str, code: int = 1):
     """Print one line to stderr and exit."""
     typer.echo(f"curltrack: error: {message}", err=True)
@@ -95,6 +114,8 @@ def guarded(func):
             fail(str(exc))
         except KeyboardInterrupt:
             fail("interrupted", 130)
+        except BrokenPipeError:  # stdout's reader stopped early (`| head`): not an error
+            stdout_closed()
         except (typer.Exit, typer.Abort, SystemExit):
             raise
         except MemoryError:
@@ -106,6 +127,17 @@ def guarded(func):
                  f"CURLTRACK_DEBUG=1 for a traceback".replace("\n", " "))
 
     return wrapper
+
+
+def stdout_closed():
+    """The reader of stdout went away (``curltrack ... | head``): outputs are already
+    written; leave quietly with status 0 (no traceback, no 'Broken pipe' at exit)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    raise SystemExit(0)
 
 
 def _debug() -> bool:

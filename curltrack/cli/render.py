@@ -18,6 +18,13 @@ angle in the SHOT.csv frame for every video frame, plus the camera and image pos
 VIDEO.rig.toml (the rig used, with the frame rate) and VIDEO.render.json (every setting).
 Rendering is deterministic from --seed.  Defaults: 960x540, ladder camera at 2.0 m
 (handheld: 1.6 m) with 1.5 deg tilt, barrel distortion k1 = -0.08, 5 blur sub-frames.
+
+Real cameras' artefacts, each off by default: interlaced fields (--scan interlaced; the
+truth then has a row per field with a `field` column and each field's own t), non-square
+pixels, chroma subsampling, a rolling shutter (truth at the centre row's time; the
+rock's drawn position in u_drawn_px, v_drawn_px), strong or fisheye lenses, frame-time
+jitter and dropped frames (t = the container's timestamps), auto exposure / white
+balance, H.264 / HEVC at a target bitrate, a rotation tag.
 """
 
 
@@ -32,7 +39,8 @@ def render(
     truth: Optional[Path] = typer.Option(None, "--truth", help="Truth series (.csv/.parquet); "
                                          "default VIDEO.truth.csv."),
     seed: int = typer.Option(0, "--seed", help="Seed of every random choice."),
-    camera: str = typer.Option("ladder", "--camera", help="ladder | handheld | static."),
+    camera: str = typer.Option("ladder", "--camera", help="ladder | handheld | static | "
+                               "pole."),
     camera_height_m: Optional[float] = typer.Option(None, "--camera-height-m",
                                                     help="Lens height above the ice (m)."),
     width: int = typer.Option(960, "--width", help="Image width (px)."),
@@ -70,9 +78,46 @@ def render(
     phi: Optional[float] = typer.Option(None, "--phi", help="Without SIM.csv: phi (both)."),
     alpha: Optional[float] = typer.Option(None, "--alpha", help="Without SIM.csv: alpha."),
     a_T: Optional[float] = typer.Option(None, "--a-T", "--a-t", help="Without SIM.csv: a_T."),
+    k2: float = typer.Option(0.0, "--k2", help="Distortion k2 (r^4 term; fisheye: a^4)."),
+    lens: str = typer.Option("radial", "--lens", help="radial | fisheye (equidistant, "
+                             "OpenCV's cv2.fisheye model)."),
+    principal_offset: Optional[str] = typer.Option(None, "--principal-offset-px",
+                                                   help="Principal point minus the image "
+                                                   "centre, 'DU,DV' (px); default random."),
+    pixel_aspect: float = typer.Option(1.0, "--pixel-aspect", help="Pixel width / height "
+                                       "(NTSC DV: 0.9090909 = 10/11)."),
+    scan: str = typer.Option("progressive", "--scan", help="progressive | interlaced (two "
+                             "fields per frame, 1/(2 fps) apart; truth per field)."),
+    field_order: str = typer.Option("bff", "--field-order", help="bff (NTSC DV: odd rows "
+                                    "first) | tff."),
+    chroma: str = typer.Option("444", "--chroma", help="444 | 422 | 420 | 411: colour "
+                               "resolution recorded."),
+    readout_ms: float = typer.Option(0.0, "--rolling-shutter-ms", help="Rolling shutter "
+                                     "readout time, first to last row (ms); 0 = global."),
+    frame_jitter_ms: float = typer.Option(0.0, "--frame-jitter-ms", help="RMS capture-time "
+                                          "jitter (ms): variable frame rate."),
+    drop_rate: float = typer.Option(0.0, "--drop-rate", help="Probability of a dropped "
+                                    "frame."),
+    auto_exposure: float = typer.Option(0.0, "--auto-exposure", help="RMS relative drift "
+                                        "of the exposure gain (auto exposure), 0 = off."),
+    white_balance: float = typer.Option(0.0, "--white-balance", help="RMS relative drift "
+                                        "of the red/blue gains (auto white balance)."),
+    codec: str = typer.Option("mp4v", "--codec", help="mp4v (OpenCV) | mpeg4 | h264 | hevc "
+                              "(PyAV)."),
+    bitrate: Optional[float] = typer.Option(None, "--bitrate", help="Target bitrate (bit/s; "
+                                            "PyAV codecs)."),
+    rotation: int = typer.Option(0, "--rotation", help="Display rotation tag (deg: 0, 90, "
+                                 "180, 270; PyAV codecs)."),
+    shadow: float = typer.Option(0.0, "--shadow", help="Depth (0-0.9) of a person's soft "
+                                 "shadow walking beside the rock; 0 = none."),
+    glare: float = typer.Option(10.0, "--glare", help="Peak level (0-255) of the lamps' "
+                                "reflections sliding over the ice (specular: 80-200)."),
+    glare_spread: float = typer.Option(0.12, "--glare-spread-rad", help="Their angular "
+                                       "spread (rad; specular: 0.03-0.06)."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress output."),
 ):
-    from ..render import CameraConfig, IceStyle, RenderConfig, render_video
+    from ..render import (CameraConfig, EncodingConfig, IceStyle, RenderConfig, SensorConfig,
+                          render_video)
     from ..rig import default_rig, load_rig
 
     if output.suffix.lower() != ".mp4":
@@ -102,14 +147,31 @@ def render(
         kw = {k: v for k, v in dict(phi_y=phi, alpha_y=alpha, phi_theta=phi,
                                     alpha_theta=alpha, a_T=a_T).items() if v is not None}
         shot = ShotModel.from_rig(the_rig, v0=v0, omega0=omega0, **kw)
-        series = simulate_series(shot, fps=fps or the_rig.fps or 30.0, tail_s=0.0)
+        # the rest after the stop is part of the shot: without it the video ended a frame
+        # before the stop and `fit` pinned t_F at its limit
+        series = simulate_series(shot, fps=fps or the_rig.fps or 30.0, tail_s=stopped_tail_s)
+    offset = None
+    if principal_offset is not None:
+        try:
+            offset = tuple(float(v) for v in principal_offset.split(","))
+            assert len(offset) == 2
+        except (ValueError, AssertionError):
+            fail(f"--principal-offset-px: expected 'DU,DV', got {principal_offset!r}", code=2)
     cam = CameraConfig(motion=camera, height_m=camera_height_m, view_m=view_m,
-                       tilt_deg=tilt_deg, yaw_deg=yaw_deg, k1=k1)
+                       tilt_deg=tilt_deg, yaw_deg=yaw_deg, k1=k1, k2=k2, lens=lens,
+                       pixel_aspect=pixel_aspect, principal_offset_px=offset)
+    sensor = SensorConfig(scan=scan, field_order=field_order, chroma=chroma,
+                          readout_s=readout_ms / 1e3, frame_jitter_s=frame_jitter_ms / 1e3,
+                          drop_rate=drop_rate, auto_exposure=auto_exposure,
+                          white_balance=white_balance)
+    enc = EncodingConfig(codec=codec, bitrate_bps=bitrate, rotation_deg=rotation)
     ice = IceStyle(house_at_m=house_at_m, sheet_lines=sheet_lines)
     cfg = RenderConfig(width=width, height=height, fps=fps, camera=cam, heading_deg=heading_deg,
                        blur_subframes=blur_subframes, shutter=shutter, read_noise=noise,
                        jpeg_quality=jpeg_quality or None, occlusion=occlusion,
-                       occlusion_t_s=occlusion_t_s, stopped_tail_s=stopped_tail_s, ice=ice)
+                       occlusion_t_s=occlusion_t_s, stopped_tail_s=stopped_tail_s, ice=ice,
+                       sensor=sensor, encoding=enc, shadow=shadow, glare=glare,
+                       glare_spread_rad=glare_spread)
     result = render_video(series, the_rig, output, truth_path, config=cfg, seed=seed,
                           progress=not quiet)
     m = result.meta

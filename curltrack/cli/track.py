@@ -9,7 +9,7 @@ import typer
 from ._app import app, check_outputs, guarded
 
 
-def parse_frame_list(text: str | None) -> list[int]:
+def parse_frame_list(text: str | None, where: str = "--exclude-frames") -> list[int]:
     """"1,2,5-9" -> [1, 2, 5, 6, 7, 8, 9]; raises ParameterError naming the bad item."""
     from ..errors import ParameterError
 
@@ -31,7 +31,7 @@ def parse_frame_list(text: str | None) -> list[int]:
                 out.append(v)
         except ValueError:
             raise ParameterError(f"bad frame or range {item!r} (use e.g. 1,2,5-9)",
-                                 where="--exclude-frames") from None
+                                 where=where) from None
     return out
 
 
@@ -52,6 +52,14 @@ def track(
     overlay: Path = typer.Option(None, "--overlay",
                                  help="Annotated video (grid, markers, centre, trajectory, "
                                  "x, y, theta)."),
+    frames: str = typer.Option(None, "--frames",
+                               help="With --debug-dir: frames to draw, e.g. 100,201 or 5-9."),
+    debug_dir: Path = typer.Option(None, "--debug-dir",
+                                   help="Folder for PNGs of what was found on --frames "
+                                   "(threads, markers, centre, trail, numbers)."),
+    corrections: Path = typer.Option(None, "--corrections",
+                                     help="JSON of clicked marker positions (px) and "
+                                     "excluded frames, e.g. downloaded from `review`."),
     no_progress: bool = typer.Option(False, "--no-progress", help="No progress bar."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
 ):
@@ -68,14 +76,22 @@ def track(
     from ..series import sidecar_path, write_series
     from ..track import track_video
 
-    check_outputs([video, rig], [("-o", output), ("-o (its sidecar)", sidecar_path(output)),
+    check_outputs([video, rig, corrections], [("-o", output), ("-o (its sidecar)", sidecar_path(output)),
                                  ("--overlay", overlay)])
     r = load_rig(rig)
     excl = parse_frame_list(exclude_frames)
+    debug = parse_frame_list(frames, where="--frames")
+    if (debug_dir is None) != (not debug):
+        from ..errors import ParameterError
+
+        raise ParameterError("--frames and --debug-dir go together", where="--debug-dir")
     series = track_video(video, r, start_frame=start_frame, end_frame=end_frame,
                          exclude_frames=excl, overlay_path=overlay,
-                         progress=not no_progress and sys.stderr.isatty())
+                         progress=not no_progress and sys.stderr.isatty(),
+                         debug_frames=debug, debug_dir=debug_dir, corrections=corrections)
     series.meta["rig"] = str(rig)
+    if overlay is not None:
+        series.meta["overlay"] = str(overlay)  # `curltrack review` embeds it
     side = write_series(output, series)
     if not quiet:
         m = series.meta

@@ -25,7 +25,12 @@ family-wise level :data:`residuals.STRUCTURE_LEVEL`) and no other candidate come
 :data:`report.AMBIGUITY_MARGIN` of its delta-BIC; otherwise ``unexplained`` (with the
 rivals under ``unexplained.ambiguous`` when the evidence cannot tell them apart).  With
 no supported candidate: ``unexplained`` if the baseline residuals are structured, else
-``none``.  An extension (:mod:`.extend`) gives the verdict ``extended`` only when it
+``none``.  Delta-BIC, threshold and the structure after are measured under the noise
+the candidate's own residuals show (:func:`.search.rescore`: an instrument's persisting
+errors and heavy tails, which the AR(1) model misses).  A supported candidate with a
+parameter at its bound, or one that makes any coordinate's RMS or held-out RMS worse,
+is not named (``not_named_because``); a baseline parameter at its bound blocks any name.
+An extension (:mod:`.extend`) gives the verdict ``extended`` only when it
 is supported, its residuals look like noise, and it beats every named effect and every
 other extension by the same margin; a named effect that explains the data about as well
 keeps its name.
@@ -131,7 +136,13 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
         cands = [c for c in cands if not c.extension]
     if effects:
         cands = [c for c in cands if c.name in set(effects)]
-    scores = [score_candidate(base, fit0, c, seg_slices, rng, n_boot=n_boot) for c in cands]
+    from ..progress import progress_bar  # on a terminal only: the bootstrap takes seconds
+
+    scores = []
+    with progress_bar("discover: bootstrap of each candidate", len(cands)) as advance:
+        for c in cands:
+            scores.append(score_candidate(base, fit0, c, seg_slices, rng, n_boot=n_boot))
+            advance()
     # nonlinear refits of every candidate whose linear delta-BIC comes near its
     # threshold.  (The linear gain is exact near the null, where thresholds live, but can
     # underestimate a strong effect several-fold, so it never ranks candidates.)
@@ -161,9 +172,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     for sc in scores:
         rescore(sc, base, fit0, rng, n_boot=n_boot)
 
-    from .report import build_report
-
-    from .report import at_bound
+    from .report import at_bound, build_report
 
     # a candidate's own parameters at a bound (a spin impulse at its -10 rad/s limit)
     cand_bounds = {}

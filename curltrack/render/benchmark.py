@@ -15,7 +15,7 @@ from ..rig import default_rig
 from ..series import Series, make_meta
 from .config import RenderConfig
 from .production import Production
-from .video import open_writer
+from .encode import open_writer
 
 
 def _draw(duration_s: float, fps: float) -> Series:
@@ -69,13 +69,13 @@ def render_benchmark(n_frames: int = 60, config: RenderConfig | None = None,
                 if info.index % max(n_frames // 8, 1) == 0:
                     frames.append(img)
             render_s, render_cpu = time.perf_counter() - t0, time.process_time() - c0
-            writer.release()
+            writer.close()
             writer = open_writer(Path(tmp) / "plain.mp4", prod.fps, (cfg.width, cfg.height))
             t0, c0 = time.perf_counter(), time.process_time()
             for k in range(n_frames):
                 writer.write(frames[k % len(frames)])
             encode_s, encode_cpu = time.perf_counter() - t0, time.process_time() - c0
-            writer.release()
+            writer.close()
     finally:
         cv2.setNumThreads(old)
     render_fps, encode_fps = n_frames / render_s, n_frames / encode_s

@@ -10,9 +10,12 @@ in the image, z along the optical axis (looking down at the ice).  Pixel coordin
 Projection of a world point ``P``::
 
     p_c = R (P - C);  x = p_c[0]/p_c[2];  y = p_c[1]/p_c[2];  r2 = x^2 + y^2
-    d = 1 + k1 r2 + k2 r2^2;  u = f x d + cx;  v = f y d + cy
+    d = 1 + k1 r2 + k2 r2^2;  u = fx x d + cx;  v = f y d + cy
 
-(``k1 < 0`` is barrel distortion).
+(``k1 < 0`` is barrel distortion), with ``fx = f / pixel_aspect`` (non-square pixels: NTSC
+DV's are 10:11, narrower than tall).  The ``fisheye`` lens is equidistant, as OpenCV's
+``cv2.fisheye`` model: ``a = atan(r)``, ``a_d = a (1 + k1 a^2 + k2 a^4)`` and the distorted
+point is ``(x, y) a_d / r``.
 """
 
 from __future__ import annotations
@@ -22,6 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ParameterError
+
+LENSES = ("radial", "fisheye")
 
 
 def rotation_matrix(rvec) -> np.ndarray:
@@ -62,7 +67,12 @@ class Camera:
     C : (3,) array
         Camera centre in the world (m); ``C[2]`` is the lens height above the ice.
     k1, k2 : float
-        Radial distortion coefficients (of r^2 and r^4, r in focal-length units).
+        Distortion coefficients: of r^2 and r^4 (``radial``, r in focal-length units) or
+        of a^2 and a^4 (``fisheye``, a = the ray's angle off the axis, rad).
+    pixel_aspect : float
+        Pixel width / height (1 = square; NTSC DV 10/11): ``fx = f_px / pixel_aspect``.
+    lens : {"radial", "fisheye"}
+        Brown's radial polynomial, or the equidistant fisheye (OpenCV's model).
     """
 
     f_px: float
@@ -74,11 +84,28 @@ class Camera:
     C: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 2.0]))
     k1: float = 0.0
     k2: float = 0.0
+    pixel_aspect: float = 1.0
+    lens: str = "radial"
+
+    @property
+    def fx(self) -> float:
+        """Horizontal focal length (px)."""
+        return self.f_px / self.pixel_aspect
 
     @property
     def K(self) -> np.ndarray:
         """Intrinsic matrix (px)."""
-        return np.array([[self.f_px, 0, self.cx], [0, self.f_px, self.cy], [0, 0, 1.0]])
+        return np.array([[self.fx, 0, self.cx], [0, self.f_px, self.cy], [0, 0, 1.0]])
+
+    def to_normalized(self, uv) -> np.ndarray:
+        """Pixel positions (N, 2) -> distorted normalised coordinates (N, 2)."""
+        uv = np.asarray(uv, dtype=float)
+        return (uv - np.array([self.cx, self.cy])) / np.array([self.fx, self.f_px])
+
+    def to_pixels(self, xy) -> np.ndarray:
+        """Normalised coordinates (N, 2) (distorted or not) -> pixel positions (N, 2)."""
+        return np.asarray(xy, dtype=float) * np.array([self.fx, self.f_px]) + [self.cx,
+                                                                               self.cy]
 
     def to_camera(self, points) -> np.ndarray:
         """World points (N, 3) (m) -> camera-frame points (N, 3) (m)."""
@@ -96,6 +123,11 @@ class Camera:
         """Undistorted normalised coordinates (N, 2) -> distorted normalised (N, 2)."""
         xy = np.asarray(xy, dtype=float)
         r2 = (xy**2).sum(axis=-1, keepdims=True)
+        if self.lens == "fisheye":
+            r = np.sqrt(r2)
+            a = np.arctan(r)
+            ad = a * (1.0 + self.k1 * a**2 + self.k2 * a**4)
+            return xy * np.divide(ad, r, out=np.ones_like(r), where=r > 0)
         return xy * (1.0 + self.k1 * r2 + self.k2 * r2**2)
 
     def undistort(self, xy_d, iterations: int = 12) -> np.ndarray:
@@ -108,7 +140,7 @@ class Camera:
         """
         xy_d = np.asarray(xy_d, dtype=float)
         rd = np.sqrt((xy_d**2).sum(axis=-1))
-        r = rd.copy()
+        r = rd.copy()  # radial: r; fisheye: the angle a (Newton on the same polynomial)
         for _ in range(iterations):
             f = r * (1.0 + self.k1 * r**2 + self.k2 * r**4) - rd
             df = 1.0 + 3.0 * self.k1 * r**2 + 5.0 * self.k2 * r**4
@@ -116,13 +148,17 @@ class Camera:
                 raise ParameterError("lens distortion folds over inside the image (k1, k2 "
                                      "too strong for this field of view)", where="camera.k1")
             r = r - f / df
+        if self.lens == "fisheye":
+            if (r >= np.deg2rad(80)).any():
+                raise ParameterError("the fisheye sees beyond 80 deg off its axis: the "
+                                     "pinhole canvas cannot hold it", where="camera.view_m")
+            r = np.tan(r)
         scale = np.divide(r, rd, out=np.ones_like(rd), where=rd > 0)
         return xy_d * scale[..., None]
 
     def project(self, points) -> np.ndarray:
         """World points (N, 3) (m) -> distorted pixel coordinates (N, 2) (px)."""
-        xy = self.distort(self.normalized(points))
-        return xy * self.f_px + np.array([self.cx, self.cy])
+        return self.to_pixels(self.distort(self.normalized(points)))
 
     def plane_homography(self, z_m: float) -> np.ndarray:
         """3x3 homography from (X, Y, 1) on the plane Z = ``z_m`` to *undistorted* px."""

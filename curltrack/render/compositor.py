@@ -15,6 +15,7 @@ import numpy as np
 
 from .camera import Camera
 from .ice import Texture
+from .sensor import row_time_offset
 from .sprites import Sprite
 
 
@@ -57,17 +58,21 @@ class Compositor:
         Sample through a Bayer colour filter (B at even rows and columns, R at odd ones),
         add the noise per photosite, and demosaic (OpenCV bilinear), as a colour sensor
         does; otherwise add slightly blurred noise to each channel.
+    readout_s : float
+        Rolling shutter readout time (s), 0 = global shutter (see :mod:`~.sensor`).
+    shadow : callable, optional
+        ``(t, XY (N, 2) world m) -> transmitted fraction (N,)``: a shadow on the ice.
     """
 
     def __init__(self, camera: Camera, vignetting: float, read_noise: float,
                  shot_noise_gain: float, jpeg_quality: int | None, rng: np.random.Generator,
-                 glare=None, flicker: float = 0.0, demosaic: bool = False):
+                 glare=None, flicker: float = 0.0, demosaic: bool = False,
+                 readout_s: float = 0.0, shadow=None):
         self.cam = camera
         W, H = camera.width, camera.height
         uu, vv = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
-        xd = np.stack([(uu - camera.cx) / camera.f_px, (vv - camera.cy) / camera.f_px], -1)
-        xu = camera.undistort(xd.reshape(-1, 2)).reshape(H, W, 2)
-        pu = xu * camera.f_px + np.array([camera.cx, camera.cy])
+        xd = camera.to_normalized(np.stack([uu, vv], -1).reshape(-1, 2))
+        pu = camera.to_pixels(camera.undistort(xd)).reshape(H, W, 2)
         lo = np.floor(pu.reshape(-1, 2).min(0)) - 3
         hi = np.ceil(pu.reshape(-1, 2).max(0)) + 3
         self.offset = -lo  # canvas px = undistorted px + offset
@@ -97,6 +102,11 @@ class Compositor:
         self.flicker = float(flicker)
         self._flicker_phase = rng.uniform(0, 2 * np.pi)
         self._frame_seed = int(rng.integers(2**63))
+        self.readout_s = float(readout_s)
+        self.shadow = shadow
+        n_knots = int(np.ceil(self.readout_s / 0.002)) + 1 if self.readout_s > 0 else 2
+        self._knots = np.linspace(-0.5, 0.5, n_knots) * self.readout_s
+        self._gains, self._compress = None, True
 
     def ice_homography(self, cam: Camera, tex: Texture) -> np.ndarray:
         """Texture (col, row) -> canvas px at pose ``cam``."""
@@ -156,7 +166,8 @@ class Compositor:
         K = K[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
         return K, (half - cols[0], half - rows[0])
 
-    def frame(self, times, cam_at, layers_at, tex: Texture, index: int = 0) -> np.ndarray:
+    def frame(self, times, cam_at, layers_at, tex: Texture, index: int = 0, gains=None,
+              compress: bool = True) -> np.ndarray:
         """Render one frame exposed over the sub-frame ``times`` (s).
 
         The ice: when the camera translates (the ice moves alike over the whole view,
@@ -164,33 +175,38 @@ class Compositor:
         sub-frames' shifts; otherwise enough warps that consecutive ones differ by at most
         ``max_step_px`` are averaged.  The box around the rock (and broom) is averaged
         over every sub-frame, with the ice warped into the box for each, so the moving
-        rock's blur is the exact sub-frame average.
+        rock's blur is the exact sub-frame average.  With a rolling shutter every pixel
+        is drawn as seen at its sensor row's own time (see :mod:`~.sensor`).
 
         Parameters
         ----------
         times : array
-            Sub-frame times (s), in order.
+            Sub-frame times (s), in order (of the reference row, with a rolling shutter).
         cam_at : callable
             t -> Camera.
         layers_at : callable
             t -> list of (Sprite, world pose 3x3), bottom to top.
         tex : Texture
         index : int
-            Frame index: seeds this frame's noise and flicker.
+            Exposure index: seeds this exposure's noise and flicker.
+        gains : (3,) array, optional
+            Multipliers of the B, G, R channels (auto exposure, white balance).
+        compress : bool
+            Apply the configured JPEG pass (False: the caller compresses later).
         """
         self.rng = np.random.default_rng((self._frame_seed, int(index)))
         cams = [cam_at(t) for t in times]
         n = len(times)
         self._t_mid = 0.5 * (times[0] + times[-1])
         self._cam_mid = cam_at(self._t_mid)
+        self._gains = None if gains is None else np.asarray(gains, np.float32)
+        self._compress = compress
         size = self.canvas_size
         n_bg, d, uniform = self._bg_motion(cams[0], cams[-1], tex) if n > 1 else (1, 0, True)
         if n_bg <= 1 or (uniform and n_bg > 1 and np.abs(d).max() < 24):
             # one warp at mid-exposure; a camera translating over the ice shifts the
             # whole canvas alike, so the sub-frame average is a small shift kernel
-            mid = self._cam_mid
-            bg = cv2.warpPerspective(tex.image, self.ice_homography(mid, tex), size,
-                                     flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+            bg = self._ice(self._t_mid, self._cam_mid, cam_at, tex)
             if n_bg <= 1:
                 self.acc[:] = bg
             else:
@@ -199,16 +215,17 @@ class Compositor:
                 cv2.filter2D(bg.astype(np.float32), -1, K, dst=self.acc, anchor=anchor,
                              borderType=cv2.BORDER_REFLECT)
         else:
-            bg_cams = cams if n_bg >= n else [cam_at(t) for t in
-                                              np.linspace(times[0], times[-1], n_bg)]
+            bg_times = times if n_bg >= n else np.linspace(times[0], times[-1], n_bg)
+            bg_cams = cams if n_bg >= n else [cam_at(t) for t in bg_times]
             self.acc[:] = 0.0
-            for c in bg_cams:
-                bg = cv2.warpPerspective(tex.image, self.ice_homography(c, tex), size,
-                                         flags=cv2.INTER_LINEAR,
-                                         borderMode=cv2.BORDER_REFLECT)
-                cv2.accumulate(bg, self.acc)
+            for t, c in zip(bg_times, bg_cams):
+                cv2.accumulate(self._ice(t, c, cam_at, tex), self.acc)
             self.acc *= 1.0 / len(bg_cams)
-        per_sub = [self._sprite_boxes(c, layers_at(t)) for c, t in zip(cams, times)]
+        if self.readout_s > 0:
+            per_sub = [self._sprite_boxes(cam_at(t + k), layers_at(t + k))
+                       for t in times for k in self._knots[[0, -1]]]
+        else:
+            per_sub = [self._sprite_boxes(c, layers_at(t)) for c, t in zip(cams, times)]
         boxes = [b for _, bx in per_sub for b in bx]
         if not boxes:
             return self._finish()
@@ -222,11 +239,14 @@ class Compositor:
         box = (x1 - x0, y1 - y0)
         Troi = _translate(-x0, -y0)
         roi = np.zeros((box[1], box[0], 3), np.float32)
-        for c, (homs, _) in zip(cams, per_sub):
+        for i, (c, t) in enumerate(zip(cams, times)):
+            if self.readout_s > 0:
+                roi += self._box_rolling(t, (x0, y0), box, cam_at, layers_at, tex)
+                continue
             comp = cv2.warpPerspective(tex.image, Troi @ self.ice_homography(c, tex), box,
                                        flags=cv2.INTER_LINEAR,
                                        borderMode=cv2.BORDER_REFLECT).astype(np.float32)
-            for sprite, Hs in homs:
+            for sprite, Hs in per_sub[i][0]:
                 warped = cv2.warpPerspective(sprite.rgba, Troi @ Hs, box, flags=cv2.INTER_LINEAR,
                                              borderMode=cv2.BORDER_CONSTANT, borderValue=0)
                 comp *= 1.0 - warped[..., 3:4]
@@ -234,6 +254,91 @@ class Compositor:
             roi += comp
         self.acc[y0:y1, x0:x1] = roi * (1.0 / n)
         return self._finish()
+
+    # --- rolling shutter ------------------------------------------------------------
+
+    def _ice(self, t: float, cam: Camera, cam_at, tex: Texture) -> np.ndarray:
+        """The ice on the canvas at time ``t`` (each row at its own time if rolling)."""
+        if self.readout_s <= 0:
+            return cv2.warpPerspective(tex.image, self.ice_homography(cam, tex),
+                                       self.canvas_size, flags=cv2.INTER_LINEAR,
+                                       borderMode=cv2.BORDER_REFLECT)
+        return self._ice_rolling(t, (0, 0), self.canvas_size, cam_at, tex)
+
+    def _ice_rolling(self, t, origin, box, cam_at, tex: Texture) -> np.ndarray:
+        """The ice in the canvas block ``box`` (w, h) at ``origin``, rows at their times."""
+        mx, my = self._coarse_maps(
+            lambda X, Y: self._rolling_map(t, X, Y, lambda c, _: self.ice_homography(c, tex),
+                                           cam_at, lambda _: None), *origin, *box)
+        return cv2.remap(tex.image, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+
+    def _row_offset(self, X, Y) -> np.ndarray:
+        """Canvas px -> its sensor row's exposure time minus the reference (s)."""
+        cam = self.cam
+        und = np.stack(np.broadcast_arrays(X - self.offset[0], Y - self.offset[1]), -1)
+        v = cam.to_pixels(cam.distort(cam.to_normalized(und)))[..., 1]
+        return row_time_offset(self.readout_s, cam.height, v)
+
+    def _rolling_map(self, t, X, Y, hom_at, cam_at, state_at):
+        """Source coordinates of canvas points (X, Y), each seen at its row's time.
+
+        ``hom_at(camera, state)`` is the source -> canvas homography at a knot time,
+        ``state_at(time)`` what else it needs there.  Piecewise-linear in time between
+        the knots (``_knots``, ~2 ms apart: the motion's curvature over one step is far
+        below a micrometre).
+        """
+        tau = self._row_offset(X, Y)
+        kn = self._knots
+        dk = kn[1] - kn[0]
+        f = np.clip((tau - kn[0]) / dk, 0, len(kn) - 1 - 1e-9)
+        i = np.floor(f).astype(int)
+        w = (f - i)[..., None]
+        lo, hi = int(i.min()), int(i.max()) + 1
+        P = np.stack(np.broadcast_arrays(X, Y, np.ones_like(X)), -1).astype(float)
+        src = []
+        for k in kn[lo:hi + 1]:
+            G = np.linalg.inv(hom_at(cam_at(t + k), state_at(t + k)))
+            q = P @ G.T
+            src.append(q[..., :2] / q[..., 2:])
+        src = np.stack(src)  # (knots, ...)
+        idx = (i - lo)[None, ..., None]
+        a = np.take_along_axis(src, idx, 0)[0]
+        b = np.take_along_axis(src, idx + 1, 0)[0]
+        out = a + w * (b - a)
+        return out[..., 0], out[..., 1]
+
+    @staticmethod
+    def _coarse_maps(fn, x0: int, y0: int, w: int, h: int, step: int = 4):
+        """``fn(X, Y) -> (mapx, mapy)`` evaluated every ``step`` px and bilinearly
+        upsampled to the ``w x h`` block whose top-left canvas px is ``(x0, y0)``: the
+        maps are smooth, so this is exact to far below a pixel and 16x cheaper."""
+        nx, ny = -(-w // step) + 2, -(-h // step) + 2
+        # cv2.resize (x step) puts coarse sample k at fine px step k + (step - 1) / 2
+        X = x0 - step + step * np.arange(nx) + (step - 1) / 2
+        Y = y0 - step + step * np.arange(ny) + (step - 1) / 2
+        mx, my = fn(X[None, :], Y[:, None])
+        up = cv2.resize(np.dstack([mx, my]).astype(np.float32), (nx * step, ny * step),
+                        interpolation=cv2.INTER_LINEAR)
+        up = up[step:step + h, step:step + w]
+        return np.ascontiguousarray(up[..., 0]), np.ascontiguousarray(up[..., 1])
+
+    def _box_rolling(self, t, origin, box, cam_at, layers_at, tex) -> np.ndarray:
+        """The box around the rock at sub-frame ``t``, each row at its own time."""
+        comp = self._ice_rolling(t, origin, box, cam_at, tex).astype(np.float32)
+        for sprite, pose_t in layers_at(t):
+            def pose(tk, sprite=sprite, pose_t=pose_t):
+                # (a layer that leaves at a knot, the broom far off, keeps its pose at t)
+                found = [p for s, p in layers_at(tk) if s is sprite]
+                return found[0] if found else pose_t
+            mx, my = self._coarse_maps(
+                lambda X, Y: self._rolling_map(
+                    t, X, Y, lambda c, p: self.sprite_homography(c, sprite, p), cam_at, pose),
+                *origin, *box)
+            warped = cv2.remap(sprite.rgba, mx, my, cv2.INTER_LINEAR,
+                               borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            comp *= 1.0 - warped[..., 3:4]
+            comp += warped[..., :3]
+        return comp
 
     def _glare_image(self, cam: Camera):
         """The lamps' diffuse reflections seen by ``cam``: (H, W, 3) levels, or None.
@@ -245,8 +350,8 @@ class Compositor:
         front = pc[:, 2] > 0
         if not front.any() or peak <= 0:
             return None
-        uv = cam.distort(pc[front, :2] / pc[front, 2:]) * cam.f_px + [cam.cx, cam.cy]
-        sigma = spread * cam.f_px
+        uv = cam.to_pixels(cam.distort(pc[front, :2] / pc[front, 2:]))
+        sigma = spread * cam.f_px  # (the glare is broad: its small anisotropy is ignored)
         W, H = cam.width, cam.height
         near = ((uv[:, 0] > -4 * sigma) & (uv[:, 0] < W + 4 * sigma)
                 & (uv[:, 1] > -4 * sigma) & (uv[:, 1] < H + 4 * sigma))
@@ -263,6 +368,22 @@ class Compositor:
         g = cv2.resize(g, (len(cu) * 8, len(cv) * 8), interpolation=cv2.INTER_LINEAR)
         return np.repeat(g[:H, :W, None], 3, axis=2)
 
+    def _shadow_image(self, cam: Camera, t: float) -> np.ndarray:
+        """Transmitted light (H, W, 3) under a person's soft shadow on the ice at ``t``:
+        ``1 - depth * s`` with ``s`` the shadow's profile on the ice plane (see
+        :meth:`~.production.Production.shadow_at`), seen through ``cam``."""
+        W, H = cam.width, cam.height
+        n = 4  # a grid n px coarse (the penumbra is smooth), resized: sample k at n k + 1.5
+        cu = np.arange((W + n - 1) // n) * n + (n - 1) / 2
+        cv = np.arange((H + n - 1) // n) * n + (n - 1) / 2
+        uv = np.stack(np.meshgrid(cu, cv), -1).reshape(-1, 2)
+        pu = cam.to_pixels(cam.undistort(cam.to_normalized(uv)))
+        q = np.c_[pu, np.ones(len(pu))] @ np.linalg.inv(cam.plane_homography(0.0)).T
+        XY = q[:, :2] / q[:, 2:]
+        s = self.shadow(t, XY).reshape(len(cv), len(cu)).astype(np.float32)
+        s = cv2.resize(s, (len(cu) * n, len(cv) * n), interpolation=cv2.INTER_LINEAR)
+        return np.repeat(s[:H, :W, None], 3, axis=2)
+
     @staticmethod
     def _mosaic(img: np.ndarray) -> np.ndarray:
         """The photosite values of a Bayer sensor: B G / G R in each 2x2 cell."""
@@ -276,6 +397,8 @@ class Compositor:
     def _finish(self) -> np.ndarray:
         """Glare, distort, vignette and flicker, noise; the final BGR uint8 frame."""
         img = cv2.remap(self.acc, self.map1, self.map2, cv2.INTER_LINEAR)
+        if self.shadow is not None:
+            cv2.multiply(img, self._shadow_image(self._cam_mid, self._t_mid), dst=img)
         glare = self._glare_image(self._cam_mid) if self.glare is not None else None
         if glare is not None:
             cv2.add(img, glare, dst=img)
@@ -283,7 +406,10 @@ class Compositor:
         if self.flicker > 0:
             gain += self.flicker * (np.sin(2 * np.pi * 0.7 * self._t_mid + self._flicker_phase)
                                     * np.sqrt(0.5) + 0.5 * self.rng.standard_normal())
-        cv2.multiply(img, self.vignette3, dst=img, scale=gain)
+        if self._gains is not None:
+            cv2.multiply(img, self.vignette3 * self._gains, dst=img, scale=gain)
+        else:
+            cv2.multiply(img, self.vignette3, dst=img, scale=gain)
         if self.demosaic:
             img = self._mosaic(img)
         if self.read_noise > 0 or self.gain > 0:
@@ -300,6 +426,10 @@ class Compositor:
         out = cv2.convertScaleAbs(cv2.max(img, 0.0))  # rounds, saturates at 255
         if self.demosaic:
             out = cv2.cvtColor(out, cv2.COLOR_BayerRG2BGR)  # OpenCV's name for this layout
+        return self.compress(out) if self._compress else out
+
+    def compress(self, out: np.ndarray) -> np.ndarray:
+        """The configured extra JPEG pass (blocking and ringing), if any."""
         if self.jpeg_quality:
             ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(self.jpeg_quality)])
             out = cv2.imdecode(buf, cv2.IMREAD_COLOR)

@@ -12,25 +12,12 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-import cv2
-
 from .._atomic import atomic_path, verify_video, write_json, write_text
-from ..errors import VideoError
 from ..rig import Rig
 from ..series import Series, write_series
 from .config import RenderConfig
+from .encode import open_writer
 from .production import Production
-
-FOURCC = "mp4v"  # the H.264 encoders are absent from the opencv-python wheels
-
-
-def open_writer(path, fps: float, size) -> cv2.VideoWriter:
-    """An mp4v ``cv2.VideoWriter`` for ``path`` (VideoError if it cannot be opened)."""
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*FOURCC), float(fps),
-                             tuple(int(v) for v in size))
-    if not writer.isOpened():
-        raise VideoError(f"cannot open a {FOURCC} video writer", path=path)
-    return writer
 
 
 def render_video(series: Series, rig: Rig, video_path, truth_path=None,
@@ -55,17 +42,24 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
     seed : int
         Every random choice (placement, camera path, ice, noise) derives from it.
     progress : bool
-        Print progress to stderr.
+        A progress bar on stderr (when it is a terminal).
 
     Returns
     -------
     Series
-        Truth, one row per video frame: the contract columns plus ``u_px``, ``v_px``
+        Truth, one row per video frame (per field when interlaced: then a ``field``
+        column, 0 = exposed first, and ``t`` = that field's time), ``t`` the frame's
+        capture time = its container timestamp (with a rolling shutter: the time of the
+        image's centre row): the contract columns plus ``u_px``, ``v_px``
         (rock centre on the ice, in the image, at mid-exposure), ``u_top_px``,
         ``v_top_px`` (rock axis at the marker plane), ``marker<i>_u_px``/``_v_px``,
         ``camera_x_m``, ``camera_y_m`` (lens centre in the truth frame),
         ``camera_height_m``, ``camera_yaw_deg`` (image +u direction, CCW from the truth
-        +x), ``in_view`` and ``occluded`` (fraction of the rock's top hidden by the broom).
+        +x), ``in_view`` and ``occluded`` (fraction of the rock's top hidden by the broom);
+        with a rolling shutter ``u_drawn_px``, ``v_drawn_px`` (where the centre is drawn:
+        its path seen at its own row's time); with auto exposure / white balance
+        ``gain_b``, ``gain_g``, ``gain_r``.  Pixel positions are those of the stored
+        frames (before any rotation tag).
 
     Raises
     ------
@@ -77,19 +71,22 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
     prod = Production(series, rig, config or RenderConfig(), seed)
     video_path = Path(video_path)
     with atomic_path(video_path) as tmp:
-        writer = open_writer(tmp, prod.fps, (prod.cfg.width, prod.cfg.height))
+        sen = prod.sensor
+        writer = open_writer(tmp, prod.fps, (prod.cfg.width, prod.cfg.height),
+                             prod.cfg.encoding, sen.field_order if sen.interlaced else None,
+                             prod.cam_cfg.pixel_aspect)
         written = 0
+        from ..progress import progress_bar
+
         try:
-            for img, info in prod.frames():
-                writer.write(img)
-                written += 1
-                if progress and (info.index % 30 == 0 or info.index == prod.n_frames - 1):
-                    print(f"\rrender: frame {info.index + 1}/{prod.n_frames}", end="",
-                          file=sys.stderr)
+            with progress_bar("render", prod.n_frames,
+                              enabled=progress and sys.stderr.isatty()) as advance:
+                for img, info in prod.frames():
+                    writer.write(img, info.t)
+                    written += 1
+                    advance()
         finally:
-            writer.release()
-        if progress:
-            print(file=sys.stderr)
+            writer.close()
         verify_video(tmp, written, video_path)
     truth = prod.truth()
     if truth_path is not None:

@@ -13,7 +13,7 @@ The tracker never reads renderer truth: everything comes from the pixels and the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field as dc_field
 
 import numpy as np
 
@@ -43,13 +43,23 @@ BLANK = "blank frame (no image content)"
 OUTLINE_FRAMES = 40
 
 
+#: A field is measured on an image of twice its lines (:func:`curltrack.video.field_image`):
+#: half its pixels are independent, and the interpolated half is smoother, so the noise
+#: read from it and the sigmas computed from it are too small by sqrt(2) (half the
+#: samples) / 0.905 (the RMS noise of original and cubic-interpolated rows, 1 and 0.8):
+#: 1.56.  (Measured before: std of theta error/sigma 1.2-1.6 on rendered interlaced
+#: draws.)
+FIELD_SIGMA_FACTOR = 1.56
+
+
 @dataclass
 class FrameRecord:
     """What one frame contributed (small; one per frame is kept)."""
 
     frame: int
     t: float
-    status: str = ""  # "" = measured, else the reason it is not
+    status: str = ""
+    field: int | None = None  # interlaced video: 0/1 = the field exposed first/second  # "" = measured, else the reason it is not
     markers_px: np.ndarray | None = None  # (M, 2) observed px
     H: np.ndarray | None = None  # undistorted px -> lattice m
     centre_app: np.ndarray | None = None  # apparent rock axis on the ice (m)
@@ -57,10 +67,13 @@ class FrameRecord:
     scale: float = np.nan  # apparent layout scale H/(H-h)
     sigma_m: float = np.nan  # 1 sigma of one marker on the ice (m)
     grid_sigma_m: float = np.nan  # 1 sigma of the homography at the image centre (m)
+    grid_residual_m: float = np.nan  # thread points' RMS miss of the fitted lattice (m)
+    m_per_px: float = np.nan  # ice metres per image px at the rock
     spacing_px: float = np.nan
     contrast: float = np.nan
+    segment: int = 0  # the grid's cell-index segment (GridPose.segment)
     outline_m: float = np.nan  # radius of the rock's outline (m, lattice; track.outline)
-    notes: list = field(default_factory=list)
+    notes: list = dc_field(default_factory=list)
 
 
 class _Follower:
@@ -206,8 +219,10 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     L = det.layout_m
     seen_markers = False
     markers_ice: list[tuple[int, np.ndarray]] = []  # last two measured (frame, (M, 2) m)
+    rec_segment = 0  # grid segment of markers_ice
     for fr in frames:
-        rec = FrameRecord(fr.index, fr.t)
+        rec = FrameRecord(fr.index, fr.t, field=fr.field)
+        k = fr.sample  # running exposure index (frames, or fields of interlaced video)
         records.append(rec)
         if progress is not None:
             progress(1)
@@ -215,7 +230,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         if not seen_markers and float(img[::8, ::8].std()) < BLANK_STD:  # black lead-in
             rec.status = BLANK  # (before the detector sees it: it adapts to what it sees)
             continue
-        mf = fol.detect(img, fr.index)
+        mf = fol.detect(img, k)
         found = mf is not None and bool(mf.found.all())
         if not found:
             rec.status = ("rock/markers not found" if mf is None else
@@ -228,7 +243,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
                         f"{records[0].frame}-{fr.index}", path=path, where=f"frame {fr.index}")
                 continue
         seen_markers = True
-        mask = fol.mask(img.shape, fr.index)
+        mask = fol.mask(img.shape, k)
         if tracker is None:
             if not found:
                 continue
@@ -248,8 +263,8 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             M = len(L)
             q = undistort(np.vstack([mf.xy_px, pixel_steps(mf.xy_px.mean(axis=0))]),
                           calib.K, calib.dist)
-            anchor = _anchor(markers_ice, q[:M], fr.index)
-        pose = tracker.update(img, fr.index, mask=mask, anchor=anchor)
+            anchor = _anchor(markers_ice, q[:M], k)
+        pose = tracker.update(img, k, mask=mask, anchor=anchor)
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px
         if not found:
@@ -260,7 +275,10 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             continue
         on_ice = apply_h(pose.H, q)
         ice = on_ice[:M]
-        markers_ice = (markers_ice + [(fr.index, ice)])[-2:]
+        if pose.segment != rec_segment:  # (the last positions are in another cell index)
+            markers_ice, rec_segment = [], pose.segment
+        rec.segment = pose.segment
+        markers_ice = (markers_ice + [(k, ice)])[-2:]
         c, phi, s, _ = similarity_fit(L, ice)
         mpp = pixel_scale(on_ice[M:])
         rec.centre_app, rec.phi, rec.scale = c, phi, s
@@ -269,6 +287,10 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
                                            rig.rock_diameter_m / 2)[0]
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
         rec.grid_sigma_m = (pose.sigma_px if np.isfinite(pose.sigma_px) else 0.3) * mpp
+        if fr.field is not None:
+            rec.sigma_m *= FIELD_SIGMA_FACTOR
+            rec.grid_sigma_m *= FIELD_SIGMA_FACTOR
+        rec.grid_residual_m, rec.m_per_px = pose.residual_px * mpp, mpp
         rec.contrast = float(np.min(mf.contrast))
         if pose.message:
             rec.notes.append(pose.message)
@@ -284,7 +306,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
 
 def track_video(video_path, rig: Rig, start_frame: int | None = None,
                 end_frame: int | None = None, exclude_frames=(), overlay_path=None,
-                progress: bool = False):
+                progress: bool = False, debug_frames=(), debug_dir=None, corrections=None):
     """Track a shot video: x(t), y(t), theta(t) in the shot frame, with stop times.
 
     Parameters
@@ -303,6 +325,11 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         Write an annotated video there (second pass over the video).
     progress : bool
         Show a progress bar (rich) on stderr.
+    debug_frames, debug_dir : iterable of int, path, optional
+        Write a PNG of what was found on each of these frames into ``debug_dir``.
+    corrections : path, optional
+        A corrections file (:mod:`curltrack.track.corrections`): frames measured from
+        clicked marker positions, frames excluded; recorded in the sidecar.
 
     Notes
     -----
@@ -332,6 +359,11 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     from .results import build_series
 
     info = probe_video(video_path, fps_override=rig.fps)
+    corr = None
+    if corrections is not None:  # read first: a bad file fails before the long pass
+        from .corrections import read_corrections
+
+        corr = read_corrections(corrections, len(rig.markers))
     start = int(start_frame or 0)
     end = info.n_frames if end_frame is None else int(end_frame) + 1
     if not 0 <= start < info.n_frames:
@@ -346,10 +378,10 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
                          path=video_path, where="--end-frame")
     end = min(end, info.n_frames)
     exclude = sorted({int(i) for i in exclude_frames if start <= int(i) < end})
+    fields = info.interlaced
     frames = iter_frames(video_path, start=start, end=end, exclude=exclude,
-                         fps_override=rig.fps)
+                         fps_override=rig.fps, decoder=info.decoder, fields=fields)
     total = end - start - len(exclude)
-    bar = _progress_bar(total, str(video_path)) if progress else None
     import cv2
 
     # OpenCV's own threads (and the decoder's, in curltrack.video) = CURLTRACK_THREADS,
@@ -363,15 +395,16 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     n_threads = decoder_threads()
     if n_threads > 0:
         cv2.setNumThreads(n_threads)
+    from ..progress import progress_bar
+
     try:
-        with threadpool_limits(limits=max(n_threads, 1), user_api="blas"):
+        with threadpool_limits(limits=max(n_threads, 1), user_api="blas"), \
+                progress_bar("tracking", total, enabled=progress) as advance:
             records, loop_info = track_frames(frames, rig, path=video_path,
-                                              progress=bar[1] if bar else None,
+                                              progress=advance if progress else None,
                                               outline_every=max(2, total // OUTLINE_FRAMES))
     finally:
         cv2.setNumThreads(threads_before)
-        if bar:
-            bar[0].stop()
     blank = _blank_lead(records) if start_frame is None else 0
     if blank:  # black / empty frames before the scene: t = 0 at the first real frame
         records, start = records[blank:], records[blank].frame
@@ -381,12 +414,25 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         exclude = [i for i in exclude if i >= start]
     # Excluded frames are rows too (ok = 0), at their nominal time.
     dt = 1.0 / info.fps
-    by_frame = {r.frame: r for r in records}
-    t_of = _time_interpolator(records, start, dt)
+    by_frame = {(r.frame, r.field or 0): r for r in records}
+    t_of = _time_interpolator([r for r in records if not r.field], start, dt)
     for i in exclude:
-        by_frame[i] = FrameRecord(i, t_of(i), status="excluded by the user")
+        for fld in ((0, 1) if fields else (None,)):
+            by_frame[(i, fld or 0)] = FrameRecord(i, t_of(i) + 0.5 * dt * (fld or 0),
+                                                  status="excluded by the user", field=fld)
     records = [by_frame[i] for i in sorted(by_frame)]
+    corr_warnings = []
+    if corr is not None:
+        from .corrections import apply_corrections
+
+        corr_warnings = apply_corrections(records, corr, loop_info["calib"], rig)
     series = build_series(records, rig, info, start, loop_info, path=video_path)
+    if corr is not None:
+        series.meta["corrections"] = {
+            "file": corr["file"], "click_sigma_px": corr["click_sigma_px"],
+            "frames_from_clicks": sorted(corr["clicked"]),
+            "frames_excluded": sorted(corr["excluded"])}
+        series.meta["warnings"].extend(corr_warnings)
     if blank:
         series.meta["warnings"].insert(0, f"frames {start - blank}-{start - 1} show neither "
                                        f"rock nor grid (black or empty): skipped; t = 0 at "
@@ -394,8 +440,14 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     if overlay_path is not None:
         from .overlay import write_overlay
 
-        write_overlay(video_path, overlay_path, records, series, loop_info, rig,
-                      start=start, end=end, exclude=exclude)
+        with progress_bar("overlay", total, enabled=progress) as advance:
+            write_overlay(video_path, overlay_path, records, series, loop_info, rig,
+                          start=start, end=end, exclude=exclude, progress=advance)
+    if debug_dir is not None and len(debug_frames):
+        from .overlay import write_debug_frames
+
+        write_debug_frames(video_path, debug_dir, debug_frames, records, series,
+                           loop_info["calib"], rig)
     return series
 
 
@@ -423,16 +475,3 @@ def _time_interpolator(records, start, dt):
         return float(np.interp(i, frames, times))
 
     return t_of
-
-
-def _progress_bar(total: int, name: str):
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                               TimeRemainingColumn)
-
-    from rich.console import Console
-
-    prog = Progress(TextColumn("tracking"), BarColumn(), MofNCompleteColumn(),
-                    TimeRemainingColumn(), transient=True, console=Console(stderr=True))
-    task = prog.add_task(name, total=total)
-    prog.start()
-    return prog, (lambda n: prog.advance(task, n))

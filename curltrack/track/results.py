@@ -29,9 +29,22 @@ MIN_MEASURED = 8
 TURN_WARN_DEG_PER_FRAME = 1.0
 
 
+#: sigma_xy (per coordinate) = k x hypot(SIGMA_STAT_SCALE x the pixel-noise sigma of the
+#: markers and the homography, SIGMA_MISFIT_SCALE x the thread points' RMS miss of the
+#: fitted lattice, in m at the rock).  The pixel-noise part alone was 1.3-2.4x too small
+#: (std of error/sigma pooled over x and y, 6 random rendered set-ups: 640-1280 px wide,
+#: ladder/handheld, spacings 0.1-0.2 m, JPEG 40-95, shutter 0.2-0.9, brooms): the
+#: errors also hold what the noise model leaves out - the lattice's misfit (lens model,
+#: blur, compression), which the threads' residual measures.  Fitted by maximum
+#: likelihood over those frames: 1.40 and 0.32 (the rock's speed added nothing); the
+#: std of error/sigma is then 0.66-1.15 per set-up (was 1.30-2.44).
+SIGMA_STAT_SCALE = 1.40
+SIGMA_MISFIT_SCALE = 0.32
+
+
 def frame_ranges(frames) -> str:
     """[1, 2, 3, 7] -> "1-3, 7"."""
-    frames = sorted(int(f) for f in frames)
+    frames = sorted({int(f) for f in frames})
     out, i = [], 0
     while i < len(frames):
         j = i
@@ -74,7 +87,7 @@ def camera_turn(records, calib) -> tuple[np.ndarray, np.ndarray]:
     used = [r for r in records if r.status == "" and r.H is not None]
     if len(used) < 2:
         return np.zeros(0, int), np.zeros(0)
-    frames = np.array([r.frame for r in used])
+    frames = np.array([r.frame + 0.5 * (r.field or 0) for r in used])  # (fields: halves)
     yaw = image_yaw_deg(np.array([r.H for r in used]), calib.K, calib.dist)
     rate = np.abs(lattice_turn_deg(yaw[:-1], yaw[1:])) / np.diff(frames)
     if rate.size >= 3:
@@ -98,6 +111,32 @@ def _height(records, ok, rig: Rig, depth_eff: float, warnings: list) -> HeightEs
                         "(set [camera].height_m in the rig); no parallax correction applied")
         return HeightEstimate(np.inf, np.inf, 1.0, np.inf, 0)
     return est
+
+
+def _resolve_cells(records, t, centre, ok, calib, warnings, path):
+    """Put every grid segment in one cell index (:mod:`.segments`), in place.
+
+    ``centre`` and the records' homographies of re-anchored segments are moved by whole
+    cells; frames of segments the rock's path cannot place become ``ok`` = 0 (``ok``
+    and ``centre`` updated).  Returns the measured frames' indices.
+    """
+    from .segments import resolve_segments
+
+    seg = np.array([r.segment for r in records])
+    shift, unresolved, notes = resolve_segments(
+        t, centre, seg, ok, (calib.spacing_x_m, calib.spacing_y_m))
+    for i in np.flatnonzero(np.any(shift != 0, axis=1)):
+        centre[i] += shift[i]
+        records[i].H = np.array([[1.0, 0, shift[i, 0]], [0, 1.0, shift[i, 1]],
+                                 [0, 0, 1]]) @ records[i].H
+        records[i].centre_app = records[i].centre_app + shift[i]
+    for i in np.flatnonzero(unresolved):
+        records[i].status = ("grid: cell index not certain (the grid was lost and the "
+                             "rock's path across the gap does not fix it)")
+    ok &= ~unresolved
+    centre[unresolved] = np.nan
+    warnings.extend(f"{path}: {n}" for n in notes)
+    return np.flatnonzero(ok)
 
 
 def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None) -> Series:
@@ -153,6 +192,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     app = np.array([records[i].centre_app for i in idx]).reshape(-1, 2)
     nd = np.where(np.isfinite(nadir[idx]).all(axis=1, keepdims=True), nadir[idx], app)
     centre[idx] = correct_parallax(app, nd, est.k)
+    idx = _resolve_cells(records, t, centre, ok, calib, warnings, path)
     phi[idx] = [records[i].phi for i in idx]
     # image up direction in the lattice frame (first measured frame), for a still rock
     r0 = records[idx[0]]
@@ -167,7 +207,15 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     lever = np.sqrt(np.sum((L - L.mean(0)) ** 2))
     sig_m = np.array([r.sigma_m for r in records])
     sig_g = np.array([r.grid_sigma_m for r in records])
-    sigma_xy = est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2)
+    sig_r = np.array([r.grid_residual_m for r in records])
+    sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
+    sigma_xy = est.k * np.hypot(SIGMA_STAT_SCALE * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
+                                SIGMA_MISFIT_SCALE * sig_r)
+    sigma_xy = np.hypot(sigma_xy, shot["origin_sigma_m"])
+    if shot["origin_sigma_m"] > 1e-3:
+        warnings.append(f"{path}: the first measured frame is at t = {t[ok][0]:.2f} s: the "
+                        "origin (the rock at t = 0) is extrapolated back to it, uncertain by "
+                        f"~{1e3 * shot['origin_sigma_m']:.0f} mm (included in sigma_xy)")
     sigma_theta = sig_m / max(lever, 1e-6)
     med = np.median(scale[ok])
     spread = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
@@ -175,8 +223,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # 1 for a frame whose marker layout agrees with the video's (3 robust sigmas -> 0.6)
     quality = (np.exp(-0.5 * ((scale - med) / (3 * max(spread, 1e-4))) ** 2)
                * np.clip(contrast / 40.0, 0.0, 1.0))
+    fields = any(r.field is not None for r in records)
     data = pd.DataFrame({
-        "frame": frame, "t": t, "x": shot["x"], "y": shot["y"], "theta": shot["theta"],
+        "frame": frame, **({"field": [r.field for r in records]} if fields else {}),
+        "t": t, "x": shot["x"], "y": shot["y"], "theta": shot["theta"],
         "ok": ok.astype(int),
         "sigma_xy": np.where(ok, sigma_xy, np.nan),
         "sigma_theta": np.where(ok, sigma_theta, np.nan),
@@ -189,12 +239,12 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     turn_max = float(turn.max()) if turn.size else None
     if turn_max is not None and turn_max > TURN_WARN_DEG_PER_FRAME:
         n_fast = int((turn > TURN_WARN_DEG_PER_FRAME).sum())
-        warnings.append(f"{path}: frame {turn_frames[np.argmax(turn)]}: the camera turns "
+        warnings.append(f"{path}: frame {int(turn_frames[np.argmax(turn)])}: the camera turns "
                         f"{turn_max:.1f} deg/frame ({turn_max * info.fps:.0f} deg/s; "
                         f"{n_fast} frame(s) above {TURN_WARN_DEG_PER_FRAME:g}): positions "
                         "lose accuracy and the grid can be lost; turn the camera more "
                         "slowly")
-    stops = detect_stops(data, info.fps)
+    stops = detect_stops(data, info.fps * (2 if fields else 1))
     for note in stops.notes:
         warnings.append(f"stops: {note}")
     cam_h = est.height_m - depth_eff if np.isfinite(est.height_m) else None
@@ -210,7 +260,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         frames_lost=int((~ok).sum()), warnings=warnings, version=__version__,
         camera_turn_max_deg_per_frame=turn_max,
         video=str(path) if path is not None else None,
-        n_frames_video=info.n_frames, codec=info.codec,
+        n_frames_video=info.n_frames, codec=info.codec, **({"fields": True} if fields else {}),
+        video_format=getattr(info, "describe", lambda: None)(),
         frame_origin_lattice_m=shot["origin"].tolist(),
         frame_x_axis_lattice=shot["x_hat"].tolist(),
         frame_y_axis_lattice=shot["y_hat"].tolist(),

@@ -16,6 +16,10 @@ __all__ = ["unwrap_angle", "initial_state", "choose_axes", "to_shot_frame"]
 
 #: Displacement (m) below which a rock is taken not to translate (axis from the image).
 MIN_TRAVEL_M = 0.05
+#: How far a rock's path departs from the quadratic of :func:`initial_state` when it is
+#: extrapolated back to t = 0 (m per s^3 of span): the bound measured for a quadratic
+#: through a curling rock's path in :data:`curltrack.track.segments.MODEL_JERK_M_S3`.
+EXTRAPOLATION_M_S3 = 4e-4
 
 
 def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> np.ndarray:
@@ -107,7 +111,9 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     dict
         ``x``, ``y``, ``theta`` (N,) with NaN where not ok; ``origin`` (2,) and
         ``x_hat``, ``y_hat`` (lattice-frame unit vectors), ``theta0`` (rad),
-        ``direction_source`` ("travel" or "image up").
+        ``direction_source`` ("travel" or "image up"), ``origin_sigma_m``: the origin's
+        uncertainty from extrapolating back to t = 0 when the first measured frame is
+        later (m; 0 when it is at t = 0).
     """
     ok = np.asarray(ok, bool)
     idx = np.flatnonzero(ok)
@@ -133,5 +139,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     theta = np.full(t.shape, np.nan)
     x[idx], y[idx] = disp @ x_hat, disp @ y_hat
     theta[idx] = th - th0
+    t_first, window = max(float(tt[0]) if tt.size else 0.0, 0.0), 0.8
+    origin_sigma = EXTRAPOLATION_M_S3 * ((t_first + window) ** 3 - window ** 3)
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
-            "y_hat": y_hat, "theta0": float(th0), "direction_source": source}
+            "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
+            "origin_sigma_m": float(origin_sigma)}

@@ -142,7 +142,24 @@ def dropping_writer(monkeypatch):
 
 
 def test_truncated_overlay_never_replaces_a_good_one(cli, tmp_path, rig_file, good_clip,
-                                                     dropping_writer):
+                                                     monkeypatch):
+    from curltrack.track import overlay  # the overlay is H.264 through PyAV, not cv2
+
+    real = overlay._encode
+
+    def dropping(path, frames, *args, **kw):  # an encoder that silently drops frames
+        seen = []
+
+        def keep():
+            for i, fr in enumerate(frames):
+                seen.append(i)
+                if i < _DroppingWriter.keep:
+                    yield fr
+
+        real(path, keep(), *args, **kw)
+        return len(seen)
+
+    monkeypatch.setattr(overlay, "_encode", dropping)
     ov = tmp_path / "ov.mp4"
     ov.write_bytes(b"a good overlay\n")
     out = tmp_path / "s.csv"
@@ -195,10 +212,10 @@ def _start(args, cwd):
                             start_new_session=True)
 
 
-def _wait_for_temp(d: Path, pattern: str, proc, timeout=120.0):
+def _wait_for_temp(d: Path, pattern: str, proc, timeout=120.0, min_size=1):
     t0 = time.time()
     while time.time() - t0 < timeout and proc.poll() is None:
-        if any(p.stat().st_size > 0 for p in d.glob(pattern)):
+        if any(p.stat().st_size >= min_size for p in d.glob(pattern)):
             return True
         time.sleep(0.005)
     return False
@@ -210,7 +227,8 @@ def test_signal_removes_temporary_files(tmp_path, rig_file, good_clip, sig):
     (d / "ov.mp4").write_text("old\n")
     proc = _start(["track", good_clip[0], "--rig", rig_file, "-o", d / "s.csv",
                    "--overlay", d / "ov.mp4", "--no-progress"], d)
-    if not _wait_for_temp(d, ".ov.*.mp4", proc):
+    # (the H.264 muxer buffers: a short overlay's temp file is empty until it is closed)
+    if not _wait_for_temp(d, ".ov.*.mp4", proc, min_size=0):
         pytest.skip("the run ended before its overlay was being written")
     os.kill(proc.pid, sig)
     rc = proc.wait(timeout=60)

@@ -1,0 +1,182 @@
+"""The lattice's cell index across a loss, re-anchored on the rock's path.
+
+The grid tracker keeps the cell index continuous within a *segment*
+(:attr:`curltrack.calib.tracker.GridPose.segment`); where it was carried across a gap
+(the grid lost for a few frames while camera and rock moved) or fixed by the thread
+colours alone (known only modulo the number of colours), a new segment starts and its
+positions may be off by whole cells (0.1-0.3 m each).  Here the offset of each segment is
+measured from outside the grid: the rock slides smoothly, so one quadratic in time fits
+its path over the last ``FIT_WINDOW_S`` before the gap and the first after it, and the
+step between the two sides, in whole cells, is the offset.  A segment whose step is not
+an integer number of cells within the evidence, or whose ends are too short to fit, stays
+unresolved: its frames are ``ok`` = 0 - a wrong cell never reaches an ``ok`` row.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["resolve_segments", "path_step"]
+
+#: Seconds of the rock's path used on each side of a gap.
+FIT_WINDOW_S = 1.0
+#: Fewest measured frames on each side for a fit.
+MIN_SIDE_FRAMES = 4
+#: Largest gap (s) across which the path is extrapolated.
+MAX_GAP_S = 2.0
+#: Floor of the scatter of the rock's (parallax-corrected) positions about a quadratic
+#: (m): marker noise and the grid's are 0.3-1 mm per frame.
+MIN_SCATTER_M = 1.0e-3
+#: How far a curling rock's path departs from one quadratic over the window (m per s^3
+#: of span): the deceleration changes with speed (mu = alpha u^phi) and the curl grows.
+#: Measured on 150 simulated shots (v0 0.5-3.5 m/s, |omega0| 0.3-3 rad/s, 1 mm noise,
+#: 1 s each side): the step's error was at most 3.3 / 7.9 / 13.4 mm (99th percentile
+#: 2.8 / 5.7 / 10.8) across gaps of 10 / 25 / 40 frames at 30 fps (spans 2.3-3.3 s), i.e.
+#: <= 0.0004 x span^3.
+MODEL_JERK_M_S3 = 0.0004
+#: The step must be this close to a whole number of cells (fraction of a cell) ...
+MAX_FRACTION = 0.25
+#: ... and its 1 sigma at most this fraction of a cell (the nearest wrong integer is
+#: then > 5 sigma from the measured step).
+MAX_SIGMA_CELLS = 0.15
+
+
+def path_step(t_a, p_a, t_b, p_b):
+    """Step (m) between two stretches of one smooth path, and its 1 sigma (m).
+
+    A quadratic in time per coordinate is fitted jointly to ``p_a`` (times ``t_a``) and
+    ``p_b + step`` (times ``t_b``).
+
+    Parameters
+    ----------
+    t_a, t_b : (Na,), (Nb,) arrays
+        Times (s).
+    p_a, p_b : (Na, 2), (Nb, 2) arrays
+        Positions (m).
+
+    Returns
+    -------
+    step, sigma : (2,) arrays
+        ``p_b`` minus the path through ``p_a`` (m); its 1 sigma from the scatter about the
+        fit (floored at ``MIN_SCATTER_M``) plus a model term ``MODEL_JERK_M_S3 *
+        span**3`` for the path's departure from a quadratic over the time spanned.
+    """
+    t_a, t_b = np.asarray(t_a, float), np.asarray(t_b, float)
+    t0 = 0.5 * (t_a.max() + t_b.min())
+    tt = np.r_[t_a, t_b] - t0
+    X = np.column_stack([np.ones_like(tt), tt, tt ** 2, np.r_[np.zeros(len(t_a)),
+                                                                np.ones(len(t_b))]])
+    P = np.vstack([p_a, p_b])
+    coef, *_ = np.linalg.lstsq(X, P, rcond=None)
+    res = P - X @ coef
+    dof = max(len(tt) - 4, 1)
+    scatter = np.maximum(np.sqrt(np.sum(res ** 2, axis=0) / dof), MIN_SCATTER_M)
+    cov = np.linalg.pinv(X.T @ X)
+    span = tt.max() - tt.min()
+    sigma = np.hypot(scatter * np.sqrt(cov[3, 3]), MODEL_JERK_M_S3 * span ** 3)
+    return coef[3], sigma
+
+
+def _side(t, p, sel_ref, sel_seg, before):
+    """Reference and segment samples on one side of the segment's gap, or None."""
+    tr, ts = t[sel_ref], t[sel_seg]
+    if before:
+        ref = sel_ref & (t < ts.min())
+        if not ref.any():
+            return None
+        t_near = t[ref].max()
+        ref &= t >= t_near - FIT_WINDOW_S
+        seg = sel_seg & (t <= ts.min() + FIT_WINDOW_S)
+        gap = ts.min() - t_near
+    else:
+        ref = sel_ref & (t > ts.max())
+        if not ref.any():
+            return None
+        t_near = t[ref].min()
+        ref &= t <= t_near + FIT_WINDOW_S
+        seg = sel_seg & (t >= ts.max() - FIT_WINDOW_S)
+        gap = t_near - ts.max()
+    del tr
+    if ref.sum() < MIN_SIDE_FRAMES or seg.sum() < MIN_SIDE_FRAMES or gap > MAX_GAP_S:
+        return None
+    return path_step(t[ref], p[ref], t[seg], p[seg])
+
+
+def resolve_segments(t, p, segment, ok, spacing_m):
+    """Whole-cell offsets of the grid's segments, from the rock's path.
+
+    Parameters
+    ----------
+    t : (N,) array
+        Frame times (s).
+    p : (N, 2) array
+        Rock positions on the ice in the lattice frame (m), NaN where not measured.
+    segment : (N,) int array
+        Grid segment of each frame (:attr:`GridPose.segment`).
+    ok : (N,) bool array
+        Measured frames.
+    spacing_m : (float, float)
+        Thread spacings along the lattice's x and y (m).
+
+    Returns
+    -------
+    shift : (N, 2) array
+        Add to ``p`` (and to the frame's lattice frame) to put every resolved segment in
+        the reference segment's cell index (the segment with most measured frames).
+    unresolved : (N,) bool array
+        Measured frames of segments whose offset the path does not tell.
+    notes : list of str
+        One line per segment moved or left unresolved.
+    """
+    t = np.asarray(t, float)
+    p = np.asarray(p, float)
+    ok = np.asarray(ok, bool)
+    segment = np.asarray(segment)
+    s = np.asarray(spacing_m, float)
+    shift = np.zeros((len(t), 2))
+    ids, counts = np.unique(segment[ok], return_counts=True)
+    if len(ids) < 2:
+        return shift, np.zeros(len(t), bool), []
+    resolved = {ids[np.argmax(counts)]}
+    pending = set(ids) - resolved
+    notes = []
+    q = p.copy()
+    progress = True
+    while pending and progress:
+        progress = False
+        sel_ref = ok & np.isin(segment, list(resolved))
+        # nearest to the resolved frames first
+        order = sorted(pending, key=lambda i: np.min(np.abs(
+            t[ok & (segment == i)][:, None] - t[sel_ref][None, :])))
+        for sid in order:
+            sel_seg = ok & (segment == sid)
+            steps = [r for before in (True, False)
+                     if (r := _side(t, q, sel_ref, sel_seg, before)) is not None]
+            if not steps:
+                continue
+            frames = np.flatnonzero(sel_seg)
+            k = None
+            for step, sigma in steps:
+                cells = -step / s
+                kk = np.round(cells)
+                if (np.all(np.abs(cells - kk) <= MAX_FRACTION)
+                        and np.all(sigma / s <= MAX_SIGMA_CELLS)
+                        and (k is None or np.array_equal(k, kk))):
+                    k = kk
+                else:
+                    k = False
+                    break
+            if k is None or k is False:
+                continue
+            shift[frames] = k * s
+            q[frames] += k * s
+            resolved.add(sid)
+            pending.discard(sid)
+            if np.any(k != 0):
+                notes.append(f"frames {t[frames[0]]:.3f}-{t[frames[-1]]:.3f} s: cell index "
+                             f"re-anchored on the rock's path by {int(k[0]):+d}, "
+                             f"{int(k[1]):+d} cells")
+            progress = True
+            break
+    unresolved = ok & np.isin(segment, list(pending))
+    return shift, unresolved, notes

@@ -1,0 +1,78 @@
+"""`curltrack export --derivatives`: velocities against the simulator's truth."""
+
+import numpy as np
+import pytest
+
+from curltrack.physics.shot import ShotModel
+from curltrack.simulate import simulate_series
+
+
+def _ar1(rng, n, sigma, rho):
+    e = rng.standard_normal(n) * sigma * np.sqrt(1 - rho ** 2)
+    out = np.empty(n)
+    out[0] = rng.standard_normal() * sigma
+    for i in range(1, n):
+        out[i] = rho * out[i - 1] + e[i]
+    return out
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.5])
+def test_velocities_match_the_simulated_truth_within_their_sigma(rho):
+    from curltrack.export import derivatives
+
+    seed = int(np.random.SeedSequence().entropy % 2**31)
+    rng = np.random.default_rng(seed)
+    model = ShotModel(v0=rng.uniform(0.8, 2.0), omega0=rng.choice([-1, 1]) * rng.uniform(0.5, 3),
+                      alpha_y=rng.uniform(0.006, 0.012))
+    fine = simulate_series(model, fps=600).data
+    s = simulate_series(model, fps=30)
+    d = s.data
+    sig_m, sig_r = rng.uniform(0.001, 0.003), rng.uniform(0.003, 0.01)
+    n = len(d)
+    d["x"] += _ar1(rng, n, sig_m, rho)
+    d["y"] += _ar1(rng, n, sig_m, rho)
+    d["theta"] += _ar1(rng, n, sig_r, rho)
+    d["sigma_xy"], d["sigma_theta"] = sig_m, sig_r
+    d.loc[rng.choice(n, 10, replace=False), "ok"] = 0  # a few lost frames
+    d.loc[d["ok"] == 0, ["x", "y", "theta"]] = np.nan
+    out = derivatives(s, window_s=0.5)
+    # truth: central differences of the noiseless shot at 600 fps, at the 30 fps times
+    tf = fine["t"].to_numpy()
+    truth = {c: np.interp(d["t"], tf, np.gradient(fine[q].to_numpy(), tf))
+             for c, q in (("vx", "x"), ("vy", "y"), ("omega", "theta"))}
+    truth["speed"] = np.hypot(truth["vx"], truth["vy"])
+    t_stop = s.meta["t_stop_translation"]
+    msg = f"seed {seed}, rho {rho}, {model.v0:.2f} m/s, {model.omega0:.2f} rad/s"
+    use = (d["ok"] == 1) & (d["t"] < t_stop - 0.5)
+    for c in ("vx", "vy", "speed", "omega"):
+        err = (out[c] - truth[c])[use]
+        pull = err / out[f"sigma_{c}"][use]
+        rms_pull = float(np.sqrt(np.mean(pull ** 2)))
+        assert 0.5 < rms_pull < 1.5, f"{c}: pull rms {rms_pull:.2f} ({msg})"
+        assert np.abs(pull).max() < 5, f"{c}: {np.abs(pull).max():.1f} sigma ({msg})"
+    # the speed's own accuracy, in physical units: ~sigma / window
+    assert np.sqrt(np.mean((out["speed"] - truth["speed"])[use] ** 2)) < 0.02, msg
+    assert out.loc[d["ok"] == 0, "vx"].isna().all()
+    # after the stop, at rest
+    rest = (d["ok"] == 1) & (d["t"] > t_stop + 0.3)
+    assert (np.abs(out["speed"][rest]) < 4 * out["sigma_speed"][rest] + 1e-3).all(), msg
+
+
+def test_cli_export(tmp_path):
+    import subprocess
+    import sys
+
+    import pandas as pd
+
+    run = [sys.executable, "-m", "curltrack"]
+    subprocess.run(run + ["simulate", "--v0", "1", "--omega0", "1", "--noise-m", "0.002",
+                          "-o", str(tmp_path / "s.csv")], check=True, capture_output=True)
+    p = subprocess.run(run + ["export", str(tmp_path / "s.csv"), "--derivatives", "-o",
+                              str(tmp_path / "v.csv")], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    v = pd.read_csv(tmp_path / "v.csv")
+    assert {"vx", "vy", "speed", "omega", "sigma_vx", "sigma_omega"} <= set(v.columns)
+    assert abs(v["vy"].iloc[0] - 1.0) < 0.05
+    p = subprocess.run(run + ["export", str(tmp_path / "s.csv"), "-o", str(tmp_path / "w.csv")],
+                       capture_output=True, text=True)
+    assert p.returncode in (1, 2) and "--derivatives" in p.stderr
