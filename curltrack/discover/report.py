@@ -202,7 +202,11 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                                ambiguous=[sc.name] + ambiguous)
         else:
             verdict = sc.name
-    elif before.structured or blocked or supported:
+    elif before.structured or blocked:
+        # an extension that clears its threshold but is not chosen (its residuals stay
+        # structured, or another explains it alike) does not turn residuals that look
+        # like noise into 'unexplained': under the real-data noise classes that would
+        # add false alarms; it stays listed among the findings
         verdict = "unexplained"
         unexplained = dict(before.where or {}, after_model="baseline")
         if len(supported) > 1:   # extensions that explain it alike: no one description
