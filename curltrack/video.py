@@ -105,7 +105,8 @@ class VideoInfo:
                 if self.interlaced else "progressive")
         rot = f", rotation tag {self.rotation_deg} deg" if self.rotation_deg else ""
         if abs(self.pixel_aspect - 1.0) > 1e-3:
-            rot += f", non-square pixels ({self.pixel_aspect:.4g}: not modelled)"
+            rot += (f", non-square pixels ({self.pixel_aspect:.4g}: resampled to square "
+                        "pixels before measuring)")
         fmt = self.codec_name or self.codec or "?"
         return (f"{fmt} in {self.container.split(',')[0] or '?'}, {self.width}x{self.height},"
                 f" {self.fps:.3f} fps, {scan}{rot}; decoded by "
@@ -269,7 +270,9 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
                              "[camera].fps in the rig", path=path)
         av_info = _av_probe(path)
         black = int(img.max()) < 8 and av_info.get("peak", 0) >= 8
-        decoder = "pyav" if av_info and (av_info["interlaced"] or black) else "opencv"
+        square = abs(av_info.get("pixel_aspect", 1.0) - 1.0) <= 1e-3
+        decoder = ("pyav" if av_info and (av_info["interlaced"] or black or not square)
+                   else "opencv")
         if check_end and n > 1:
             cap.set(cv2.CAP_PROP_POS_FRAMES, n - 1)
             ok, img = cap.read()
@@ -420,6 +423,26 @@ def _field_halves(fr) -> dict:
     return {p: np.ascontiguousarray(img[p::2]) for p in (0, 1)}
 
 
+def _square_pixels(pixel_aspect: float):
+    """A function resampling a frame to square pixels (its width scaled by the
+    container's sample aspect ratio, its rows - and so its fields - kept), or the identity.
+
+    The lens, parallax and height models take a pixel to be as wide as it is high; a DV
+    camcorder's 10:11 pixels otherwise put positions ~1 cm off.
+    """
+    if abs(pixel_aspect - 1.0) <= 1e-3 or not np.isfinite(pixel_aspect) or pixel_aspect <= 0:
+        return lambda img: img
+    import cv2
+
+    def square(img):
+        h, w = img.shape[:2]
+        new_w = int(round(w * pixel_aspect))
+        interp = cv2.INTER_AREA if new_w < w else cv2.INTER_CUBIC
+        return cv2.resize(img, (new_w, h), interpolation=interp)
+
+    return square
+
+
 def _iter_pyav(path, start, end, exclude, fps_override, fields):
     """:func:`iter_frames` through FFmpeg (PyAV): frames (or fields) with pts times."""
     import av
@@ -443,6 +466,8 @@ def _iter_pyav(path, start, end, exclude, fps_override, fields):
                              "[camera].fps in the rig", path=path)
         order = int(getattr(st.codec_context, "field_order", 0) or 0)
         first = (1, 0) if order in (3, 5) else (0, 1)  # parities, in exposure order
+        sar = st.sample_aspect_ratio or st.codec_context.sample_aspect_ratio
+        square = _square_pixels(float(sar) if sar else 1.0)
         t0 = None
         index = -1
         prev = -np.inf
@@ -468,9 +493,9 @@ def _iter_pyav(path, start, end, exclude, fps_override, fields):
                     halves = _field_halves(fr)
                     for k, parity in enumerate(first):
                         yield Frame(index, rel + 0.5 * k * period,
-                                    field_image(halves[parity], parity), k)
+                                    square(field_image(halves[parity], parity)), k)
                 else:
-                    yield Frame(index, rel, fr.to_ndarray(format="bgr24"))
+                    yield Frame(index, rel, square(fr.to_ndarray(format="bgr24")))
         except av.FFmpegError as exc:
             raise VideoError(f"video is truncated or corrupt: decoding stopped at frame "
                              f"{index + 1} ({exc})", path=path,

@@ -289,8 +289,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                         "slowly")
     if abs(getattr(info, "pixel_aspect", 1.0) - 1.0) > 1e-3:
         warnings.append(f"{path}: the video's pixels are not square (aspect "
-                        f"{info.pixel_aspect:.4g}); the lens and parallax models assume square "
-                        "pixels: positions can be off by several mm more than sigma_xy says")
+                        f"{info.pixel_aspect:.4g}): frames were resampled to square pixels "
+                        "before measuring (grid_spacing_px is in those pixels)")
     stops = detect_stops(data, info.fps * (2 if fields else 1))
     for note in stops.notes:
         warnings.append(f"stops: {note}")
