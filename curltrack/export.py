@@ -94,7 +94,7 @@ def derivatives(series: Series, window_s: float = 0.5, order: int = 2) -> pd.Dat
         raise ParameterError(f"order must be 1-4, got {order}", where="--order")
     if not window_s > 0:
         raise ParameterError(f"window must be > 0 s, got {window_s}", where="--window-s")
-    from .discover.noise import estimate_noise
+    from .series.noise import estimate_noise
 
     data = series.data.copy()
     meas = series.data[series.data["ok"] == 1]

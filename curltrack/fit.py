@@ -40,11 +40,13 @@ import pandas as pd
 from uncertainties import UFloat
 
 from . import __version__
-from .errors import FitError
-from .sanity import check_units
+from .errors import FitError, SeriesError
 from .physics import closed_form as cf
+from .physics.params import DESKEW, LAMBDA, bound_warnings, to_lmfit
 from .rig import Rig, default_rig
-from .series import Series
+from .sanity import check_units
+from .series import Series, series_stops
+from .series.noise import row_sigma
 
 PURE_ROTATION_MAX_TRAVEL_M = 0.10
 STOP_MARGIN_S = 0.5
@@ -62,7 +64,7 @@ FIT_KEYS = (
 _NO_ERR = {"shot_type", "rms_x", "rms_y", "rms_theta", "n_points", "x_stop"}
 
 
-@dataclass
+@dataclass(frozen=True)
 class FitResult:
     """Result of :func:`fit_series`: flat values, 1σ errors, fit diagnostics.
 
@@ -72,19 +74,47 @@ class FitResult:
         FIT.json keys (contract) -> value (None where it does not apply).
     errors : dict
         key -> 1σ uncertainty (same units), for every fitted or derived quantity.
-    warnings : list of str
+    warnings : tuple of str
     fits : dict
         name -> lmfit.MinimizerResult (``"theta"``, ``"xy"``, ``"xy_free"``).
+    extra : dict
+        FIT.json's further keys (detected stops, radii, reduced chi-squares).
+
+    Examples
+    --------
+    >>> res = fit_series(read_series("SHOT.csv"))            # doctest: +SKIP
+    >>> res.values["lambda_y"], res.errors["lambda_y"]       # doctest: +SKIP
+    >>> res.summary()["lambda_y_err"]                        # doctest: +SKIP
     """
 
     values: dict
     errors: dict
-    warnings: list = field(default_factory=list)
-    fits: dict = field(default_factory=dict)
+    warnings: tuple = ()
+    fits: dict = field(default_factory=dict, compare=False, repr=False)
     extra: dict = field(default_factory=dict)
 
-    def to_dict(self) -> dict:
-        """The FIT.json mapping: every key, its ``_err``, extras, warnings."""
+    @property
+    def success(self) -> bool:
+        """Every sub-fit converged (a failed one raises :class:`FitError`)."""
+        return all(r.success for r in self.fits.values())
+
+    @property
+    def message(self) -> str:
+        """The sub-fits' messages, one line."""
+        return "; ".join(f"{k}: {r.message}" for k, r in self.fits.items())
+
+    @property
+    def bic(self) -> dict:
+        """BIC of each sub-fit (lmfit's, from its weighted chi-square)."""
+        return {k: float(r.bic) for k, r in self.fits.items()}
+
+    @property
+    def covar(self) -> dict:
+        """Covariance matrix of each sub-fit's varied parameters (``fits[k].var_names``)."""
+        return {k: r.covar for k, r in self.fits.items()}
+
+    def summary(self) -> dict:
+        """The FIT.json mapping: every key, its ``_err``, extras, warnings, version."""
         out = {}
         for k in FIT_KEYS:
             out[k] = _plain(self.values.get(k))
@@ -94,6 +124,8 @@ class FitResult:
         out["warnings"] = list(self.warnings)
         out["version"] = __version__
         return out
+
+    to_dict = summary
 
     def report(self) -> str:
         """A short human-readable summary."""
@@ -195,56 +227,12 @@ def _minimize(resid, params, name, path):
 
 
 def _at_bound_warnings(res, name) -> list[str]:
-    out = []
-    for k, p in res.params.items():
-        if not p.vary:
-            continue
-        span = (p.max - p.min) if np.isfinite(p.max - p.min) else abs(p.value) + 1.0
-        if min(abs(p.value - p.min), abs(p.max - p.value)) < 1e-6 * span:
-            out.append(f"{name} fit: parameter {k} = {p.value:.6g} is at its bound")
-    return out
-
-
-# ---------------------------------------------------------------------------------------
-# noise
-
-def noise_level(t: np.ndarray, q: np.ndarray, t_stop: float | None) -> float:
-    """Estimate the white measurement noise (1σ, units of ``q``) from the data.
-
-    From rows after the stop when there are enough (>= 8), otherwise from second
-    differences of the moving part (for smooth motion d²q ≈ noise, var = 6σ²).
-    """
-    if t_stop is not None:
-        rest = q[t > t_stop + 0.1]
-        if len(rest) >= 8:
-            return float(np.std(rest, ddof=1))
-    d2 = np.diff(q, 2)
-    if len(d2) < 3:
-        return float("nan")
-    mad = np.median(np.abs(d2 - np.median(d2))) * 1.4826
-    return float(mad / math.sqrt(6.0))
+    return bound_warnings(((k, p.value, p.min, p.max) for k, p in res.params.items()
+                           if p.vary), name)
 
 
 # ---------------------------------------------------------------------------------------
 # the fits
-
-def _stop_time(series: Series, key: str, warnings: list) -> float | None:
-    """Stop time from the sidecar, else detected from the series (with a warning)."""
-    meta = series.meta
-    if key in meta:
-        return meta[key]
-    from .track.stops import detect_stops  # lazy: only needed without a sidecar
-
-    data = series.data
-    fps = meta.get("fps") or 1.0 / float(np.median(np.diff(data["t"])))
-    stops = detect_stops(data, fps)
-    meta.update({"t_stop_translation": stops.t_stop_translation,
-                 "t_stop_rotation": stops.t_stop_rotation})
-    warnings.append(f"{series.name}: no sidecar with stop times; stops detected from the "
-                    f"series (translation {stops.t_stop_translation}, rotation "
-                    f"{stops.t_stop_rotation} s)")
-    return meta[key]
-
 
 def _window(t, t_stop, fixed_stop, name, coord, path, warnings):
     """Rows used for a fit and the (initial) t_F with its bounds."""
@@ -285,9 +273,9 @@ def fit_rotation(t, theta, t_stop, fixed_stop=False, sigma=None, path=None, warn
         Detected rotation stop (s).
     fixed_stop : bool
         Hold t_F at ``t_stop``.
-    sigma : float, optional
-        Noise (rad) used to weight the residuals (the covariance is scaled by the
-        reduced chi-square in any case).
+    sigma : float or ndarray, optional
+        Noise (rad) of every row, or one for all, used to weight the residuals (the
+        covariance is scaled by the reduced chi-square in any case).
 
     Returns
     -------
@@ -297,15 +285,17 @@ def fit_rotation(t, theta, t_stop, fixed_stop=False, sigma=None, path=None, warn
     use, tF, bounds = _window(t, t_stop, fixed_stop, "rotation", "rotation", path, warnings)
     tt, qq = t[use], theta[use]
     _check_points(len(tt), 4 - fixed_stop, "rotation", path)
-    sigma = sigma if sigma and np.isfinite(sigma) and sigma > 0 else 1.0
+    sigma = _row_weights(sigma, t)[use]
     p = lmfit.Parameters()
     q_end = float(np.median(qq[-3:]))
     p.add("theta_F", value=q_end if abs(q_end) > 1e-6 else 1e-3)
-    p.add("lambda_theta", value=1.6, min=1.0001, max=6.0)
+    to_lmfit(p, LAMBDA, "lambda_theta", 1.6)
     p.add("t_Ftheta", value=tF, vary=bounds is not None,
           **({} if bounds is None else dict(min=bounds[0], max=bounds[1])))
     p.add("theta0", value=0.0)
-    return _minimize(lambda pp: (_theta_model(pp, tt) - qq) / sigma, p, "rotation", path)
+    res = _minimize(lambda pp: (_theta_model(pp, tt) - qq) / sigma, p, "rotation", path)
+    res.raw_residual = _theta_model(res.params, tt) - qq   # rad
+    return res
 
 
 def fit_translation(t, x, y, t_stop, fixed_stop=False, free_lambda=False, sigma=None,
@@ -313,36 +303,39 @@ def fit_translation(t, x, y, t_stop, fixed_stop=False, free_lambda=False, sigma=
     """Joint fit of x(t), y(t) with deskew angle ``psi`` (rad).
 
     ``free_lambda`` adds ``lambda_x`` (the curl's own exponent) instead of tying it to
-    lambda_y.  ``start`` (dict) gives starting values, e.g. the tied fit's.
+    lambda_y.  ``start`` (dict) gives starting values, e.g. the tied fit's.  ``sigma``:
+    the noise (m) of x and of y, each one value or one per row.
     """
     warnings = [] if warnings is None else warnings
     use, tF, bounds = _window(t, t_stop, fixed_stop, "translation", "translation", path,
                               warnings)
     tt, xx, yy = t[use], x[use], y[use]
     _check_points(len(tt), 7 + free_lambda - fixed_stop, "translation", path)
-    sigma = sigma if sigma and np.isfinite(sigma) and sigma > 0 else 1.0
+    s_x, s_y = (_row_weights(s, t)[use] for s in (sigma if sigma is not None else (None, None)))
     y_end = float(np.median(yy[-3:]))
     x_end = float(np.median(xx[-3:]))
     start = dict(start or {})
     p = lmfit.Parameters()
     p.add("y_F", value=start.get("y_F", y_end if abs(y_end) > 1e-6 else 1e-3))
-    p.add("lambda_y", value=start.get("lambda_y", 1.9), min=1.0001, max=6.0)
+    to_lmfit(p, LAMBDA, "lambda_y", start.get("lambda_y", 1.9))
     p.add("t_FS", value=start.get("t_FS", tF), vary=bounds is not None,
           **({} if bounds is None else dict(min=bounds[0], max=bounds[1])))
     p.add("a_T", value=start.get("a_T", 2.0 * 1.9 * x_end / tF**2))
     if free_lambda:
-        p.add("lambda_x", value=start.get("lambda_x", start.get("lambda_y", 1.9)),
-              min=1.0001, max=6.0)
-    p.add("psi", value=start.get("psi", 0.0), min=-0.5, max=0.5)
+        to_lmfit(p, LAMBDA, "lambda_x", start.get("lambda_x", start.get("lambda_y", 1.9)))
+    to_lmfit(p, DESKEW, value=start.get("psi", 0.0))
     p.add("x0", value=start.get("x0", 0.0))
     p.add("y0", value=start.get("y0", 0.0))
 
     def resid(pp):
         mx, my = _xy_model(pp, tt)
-        return np.concatenate([(mx - xx) / sigma, (my - yy) / sigma])
+        return np.concatenate([(mx - xx) / s_x, (my - yy) / s_y])
 
     name = "translation (lambda free)" if free_lambda else "translation"
-    return _minimize(resid, p, name, path)
+    res = _minimize(resid, p, name, path)
+    mx, my = _xy_model(res.params, tt)
+    res.raw_residual = np.concatenate([mx - xx, my - yy])   # m: x rows, then y rows
+    return res
 
 
 def classify(travel_m: float, v0: float | None, omega0: float | None, r: float) -> str:
@@ -387,6 +380,15 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
     ------
     FitError
         Too few points, a fit that does not converge, or no stop with ``fixed_stop``.
+
+    Examples
+    --------
+    >>> from curltrack import ShotModel, fit_series, simulate_series
+    >>> series = simulate_series(ShotModel(v0=2.0, omega0=1.5), noise_m=0.002,
+    ...                          noise_rad=0.005, seed=1)
+    >>> res = fit_series(series)
+    >>> round(res.values["lambda_y"], 2), res.values["shot_type"]
+    (1.84, 'draw')
     """
     rig = rig or default_rig()
     R, r = rig.inertia_radius_m, rig.band_radius_m
@@ -405,8 +407,10 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
         warnings.append(f"{path}: theta not measured (position-only series); translation "
                         "fits only")
         has_theta[:] = False
-    t_rot = _stop_time(series, "t_stop_rotation", warnings) if has_theta.any() else None
-    t_tr = _stop_time(series, "t_stop_translation", warnings)
+    t_tr, t_rot, stop_warnings = series_stops(series)
+    warnings += stop_warnings
+    if not has_theta.any():
+        t_rot = None
 
     vals: dict = {k: None for k in FIT_KEYS}
     errs: dict = {}
@@ -426,7 +430,7 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
 
     # --- rotation
     if spin >= MIN_ROTATION_RAD:
-        s_th = _weights(d[has_theta], "sigma_theta", tq, [thq], t_rot)
+        s_th = _noise_rows(d[has_theta], "sigma_theta", "theta", tq, thq, t_rot, path)
         res = fit_rotation(tq, thq, t_rot, fixed_stop, s_th, path, warnings)
         res = _honest_errors(res, s_th, [tq], "rotation", "theta", path, warnings)
         fits["theta"] = res
@@ -437,14 +441,17 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
         derive("omega0", cf.initial_rate, "theta_F", "lambda_theta", "t_Ftheta")
         spin_sign = math.copysign(1.0, res.params["theta_F"].value)
         derive("n_turns", lambda q: spin_sign * q / (2 * math.pi), "theta_F")
-        vals["rms_theta"] = _rms(res.residual * s_th)
+        vals["rms_theta"] = _rms(res.raw_residual)
     elif tq.size:
         warnings.append(f"{path}: the rock turns less than {MIN_ROTATION_RAD} rad; "
                         "rotation not fitted")
 
     # --- translation
     if travel >= PURE_ROTATION_MAX_TRAVEL_M:
-        s_xy = _weights(d, "sigma_xy", t, [x, y], t_tr)
+        # x and y of one position share their noise: the larger level weighs both
+        s_x, s_y = (_noise_rows(d, "sigma_xy", c, t, q, t_tr, path)
+                    for c, q in (("x", x), ("y", y)))
+        s_xy = (None, None) if s_x is None or s_y is None else (np.maximum(s_x, s_y),) * 2
         tied = fit_translation(t, x, y, t_tr, fixed_stop, False, s_xy, path, warnings)
         tied = _honest_errors(tied, s_xy, [t, t], "translation", "x, y", path, warnings)
         fits["xy"] = tied
@@ -475,9 +482,9 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
             tfs_free = uf["t_FS"] if "t_FS" in uf else free.params["t_FS"].value
             derive("x_F_free", lambda a, lam: cf.curl_distance(a, lam, tfs_free),
                    "a_T_free", "lambda_x")
-        n = len(t)
-        vals["rms_x"] = _rms(tied.residual[:n] * s_xy)
-        vals["rms_y"] = _rms(tied.residual[n:] * s_xy)
+        m = tied.raw_residual.size // 2
+        vals["rms_x"] = _rms(tied.raw_residual[:m])
+        vals["rms_y"] = _rms(tied.raw_residual[m:])
         vals["x_stop"] = _x_stop(t, x, y, tied.params, t_tr)
 
     shot = classify(travel, _nominal(u.get("v0")), _nominal(u.get("omega0")), r)
@@ -505,7 +512,7 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
         **{f"error_inflation_{k}": getattr(fits[k], "error_inflation", None)
            for k in ("theta", "xy") if k in fits},
     }
-    return FitResult(vals, errs, list(dict.fromkeys(warnings)), fits, extra)
+    return FitResult(vals, errs, tuple(dict.fromkeys(warnings)), fits, extra)
 
 
 class _Deriver:
@@ -602,7 +609,7 @@ def _honest_errors(res, sigma, times, label, coords, path, warnings):
         warnings.append(
             f"{path}: {label} fit: misfit -- the residuals in {coords} scatter "
             f"{np.sqrt(redchi):.3g}x the measured frame-to-frame noise "
-            f"({sigma:.3g}; reduced chi-square {redchi:.3g}) and stay correlated over "
+            f"({_typical(sigma):.3g}; reduced chi-square {redchi:.3g}) and stay correlated over "
             f"~{tau * dt:.2g} s: the paper's model misses something here, or the "
             f"instrument's errors persist; 1-sigma errors are scaled by the residuals' "
             f"scatter and correlation (x{np.sqrt(max(redchi, 1.0) * tau):.3g} of the "
@@ -614,18 +621,32 @@ def _rms(res) -> float:
     return float(np.sqrt(np.mean(np.square(res)))) if len(res) else float("nan")
 
 
-def _weights(d: pd.DataFrame, col: str, t, coords, t_stop) -> float:
-    """One noise level (1σ) for the coordinates ``coords`` (list of arrays): the median
-    of the series' per-frame sigma column when present, else estimated from the data
-    (the largest over the coordinates)."""
-    if col in d and d[col].notna().any():
-        s = float(np.nanmedian(d[col].to_numpy(float)))
-        if s > 0:
-            return s
-    est = float(np.nanmax([noise_level(t, q, t_stop) for q in coords]))
-    # Noise-free (simulated) data: a floor keeps the scaled covariance computable.
-    floor = 1e-9 * max(float(np.nanmax(np.abs(q))) for q in coords) + 1e-15
-    return max(est, floor) if np.isfinite(est) else est
+def _noise_rows(d: pd.DataFrame, col: str, field: str, t, q, t_stop, path):
+    """The 1-sigma noise of every row of coordinate ``q``: the series' noise model
+    (:func:`curltrack.series.noise.row_sigma`, as ``discover`` weighs the shot), the
+    tracker's ``col`` modulating it per frame; None when the series is too short to
+    estimate it (the rows then weigh alike, the covariance scaled by the fit's scatter)."""
+    # noise-free (simulated) data: a floor keeps the scaled covariance computable
+    floor = 1e-9 * float(np.nanmax(np.abs(q))) + 1e-15
+    try:
+        return row_sigma(d["frame"].to_numpy(int), q, t=t, t_stop=t_stop, name=path,
+                         field=field, floor=floor,
+                         weights=d[col].to_numpy(float) if col in d else None)[1]
+    except SeriesError:
+        return None
+
+
+def _typical(sigma) -> float:
+    """One number for a noise given per row (or per coordinate, per row): the median."""
+    parts = [np.atleast_1d(np.asarray(1.0 if v is None else v, dtype=float))
+             for v in (sigma if isinstance(sigma, tuple) else (sigma,))]
+    return float(np.nanmedian(np.concatenate(parts)))
+
+
+def _row_weights(sigma, t) -> np.ndarray:
+    """Per-row sigma from one value, an array, or None (all 1)."""
+    s = np.broadcast_to(np.asarray(1.0 if sigma is None else sigma, dtype=float), t.shape)
+    return np.where(np.isfinite(s) & (s > 0), s, 1.0)
 
 
 def _x_stop(t, x, y, params, t_stop) -> float | None:

@@ -18,7 +18,10 @@ import numpy as np
 from .errors import RigError
 
 G = 9.81  # m/s^2, as in the paper
-ROCK_MASS_KG = 20.0
+#: the rock's defaults (contract): inertia radius R (I = M R^2 / 2) and running-band
+#: radius r, in m -- the paper's values; a rig's [rock] table overrides them
+INERTIA_RADIUS_M = 0.14
+BAND_RADIUS_M = 0.0625
 
 
 @dataclass(frozen=True)
@@ -65,8 +68,8 @@ class Rig:
     grid_depth_m: float = 0.0
     rock_diameter_m: float = 0.29
     rock_height_m: float = 0.114
-    band_radius_m: float = 0.0625
-    inertia_radius_m: float = 0.14
+    band_radius_m: float = BAND_RADIUS_M
+    inertia_radius_m: float = INERTIA_RADIUS_M
     markers: tuple[Marker, ...] = field(default_factory=lambda: (
         Marker("#ffd000", 0.08, 0.0), Marker("#00c0ff", -0.08, 0.0)))
     fps: float | None = None
@@ -214,8 +217,8 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
             grid_depth_m=_number(grid, "depth_m", "grid", 0.0),
             rock_diameter_m=_number(rock, "diameter_m", "rock", required=True),
             rock_height_m=_number(rock, "height_m", "rock", required=True),
-            band_radius_m=_number(rock, "band_radius_m", "rock", 0.0625),
-            inertia_radius_m=_number(rock, "inertia_radius_m", "rock", 0.14),
+            band_radius_m=_number(rock, "band_radius_m", "rock", BAND_RADIUS_M),
+            inertia_radius_m=_number(rock, "inertia_radius_m", "rock", INERTIA_RADIUS_M),
             markers=tuple(markers),
             fps=_number(cam, "fps", "camera"),
             camera_height_m=_number(cam, "height_m", "camera"),

@@ -83,6 +83,14 @@ def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
     ------
     ParameterError
         Invalid parameters, or a rock that does not stop within 600 s.
+
+    Examples
+    --------
+    >>> from curltrack import Effect, ShotModel, simulate_series
+    >>> s = simulate_series(ShotModel(v0=2.0, omega0=1.5),
+    ...                     [Effect("pick", {"t_s": 8.0, "dvx_m_per_s": 0.01})], seed=1)
+    >>> list(s.data.columns[:6]), round(s.meta["t_stop_translation"], 2)
+    (['frame', 't', 'x', 'y', 'theta', 'ok'], 25.71)
     """
     fps = _positive(fps, "fps", allow_zero=False)
     noise_m, noise_rad = _positive(noise_m, "noise_m"), _positive(noise_rad, "noise_rad")

@@ -79,6 +79,9 @@ class VideoInfo:
         The container's display rotation tag (deg), 0 when none.
     decoder : str
         ``"opencv"`` or ``"pyav"``: what :func:`iter_frames` will use.
+    pixel_aspect : float
+        Sample aspect ratio (pixel width / height) the container declares, 1 when none
+        (NTSC DV: 10/11).
     """
 
     path: str
@@ -94,12 +97,15 @@ class VideoInfo:
     top_field_first: bool = True
     rotation_deg: int = 0
     decoder: str = "opencv"
+    pixel_aspect: float = 1.0
 
     def describe(self) -> str:
         """One line: format, size, rate, scan and what will be done with it."""
         scan = (f"interlaced ({'top' if self.top_field_first else 'bottom'} field first)"
                 if self.interlaced else "progressive")
         rot = f", rotation tag {self.rotation_deg} deg" if self.rotation_deg else ""
+        if abs(self.pixel_aspect - 1.0) > 1e-3:
+            rot += f", non-square pixels ({self.pixel_aspect:.4g}: not modelled)"
         fmt = self.codec_name or self.codec or "?"
         return (f"{fmt} in {self.container.split(',')[0] or '?'}, {self.width}x{self.height},"
                 f" {self.fps:.3f} fps, {scan}{rot}; decoded by "
@@ -199,7 +205,9 @@ def _av_probe(path) -> dict:
                 # AVFieldOrder: 2 TT, 3 BB, 4 TB (top coded first, bottom shown first),
                 # 5 BT; frames flagged interlaced with an unknown order: top first
                 order = int(getattr(cc, "field_order", 0) or 0)
+                sar = st.sample_aspect_ratio or cc.sample_aspect_ratio
                 return {"container": c.format.name, "codec_name": cc.name,
+                        "pixel_aspect": float(sar) if sar else 1.0,
                         "interlaced": bool(fr.interlaced_frame),
                         "top_field_first": order not in (3, 5),
                         "rotation_deg": int(round(getattr(fr, "rotation", 0) or 0)) % 360,
@@ -277,7 +285,8 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
     finally:
         cap.release()
     extra = {k: av_info[k] for k in ("container", "codec_name", "interlaced",
-                                     "top_field_first", "rotation_deg") if k in av_info}
+                                     "top_field_first", "rotation_deg", "pixel_aspect")
+             if k in av_info}
     return VideoInfo(str(path), n, fps, w, h, codec, n / fps, decoder=decoder, **extra)
 
 

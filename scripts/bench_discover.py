@@ -50,6 +50,7 @@ GRIDS = {
 N_SHOTS = {"ice_slope": 2}
 
 
+CAP = {"friction_patch": 0.9, "late_curl": 2.5}
 #: the README's 90 % strengths at 2 mm white noise (the noise-class runs scale them by
 #: each class's position-noise scale)
 S90_WHITE = {"pick": 0.002, "friction_patch": 0.08, "late_curl": 0.23}
@@ -94,7 +95,9 @@ def noise_class_table(classes, n_clean: int, trials: int, effects, seed0: int,
             f"{row['cpu_clean_median']:.1f} s)", flush=True)
         for eff in effects:
             for mult in mults:
-                st = S90_WHITE[eff] * scale * mult
+                # a patch's factor stays > 0 and late curl's |k| within its candidate
+                # bounds: at the steps class's scale (x25) they are capped
+                st = min(S90_WHITE[eff] * scale * mult, CAP.get(eff, np.inf))
                 rr = [run_one(eff, st, seed0 + 100 + i, instrument=inst) for i in range(trials)]
                 hits = sum(r["verdict"] == eff for r in rr)
                 wrong = sum(r["verdict"] not in (eff, "none", "unexplained") for r in rr)

@@ -26,6 +26,7 @@ from __future__ import annotations
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -152,7 +153,7 @@ def bench_speed(width=960, height=540, n_frames=150, seed=0, motion="ladder",
     model = (ShotModel(v0=1.8, omega0=1.5) if full_draw
              else ShotModel(v0=1.2, omega0=1.5, alpha_y=0.02))
     sim = simulate_series(model, fps=30)
-    sim.data = sim.data.iloc[:n_frames].reset_index(drop=True)
+    sim = replace(sim, data=sim.data.iloc[:n_frames].reset_index(drop=True))
     cam = CameraConfig(motion=motion)
     video = work / (f"speed_{width}x{height}_{motion}_{seed}_"
                     f"{'draw' if full_draw else n_frames}.mp4")

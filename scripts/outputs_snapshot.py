@@ -60,6 +60,9 @@ def run(cmd: str, out: Path):
 
 
 def produce(out: Path, only=None):
+    """Run every case into ``out`` (a video already there is not rendered again, a
+    tracked shot already there is not tracked again: copy them in to compare only the
+    stages after them)."""
     out.mkdir(parents=True, exist_ok=True)
     for name, (sim, ren) in RENDERED.items():
         if only and name not in only:
@@ -67,7 +70,8 @@ def produce(out: Path, only=None):
         if not (out / f"{name}.mp4").exists():
             run(f"simulate {sim} --rig {RIG} -o {name}_sim.csv", out)
             run(f"render {name}_sim.csv --rig {RIG} -o {name}.mp4 {ren}", out)
-        run(f"track {name}.mp4 --rig {RIG} -o {name}.csv", out)
+        if not (out / f"{name}.csv").exists():  # a tracked shot given: fit and discover it
+            run(f"track {name}.mp4 --rig {RIG} -o {name}.csv", out)
         run(f"fit {name}.csv --rig {RIG} -o {name}_fit.json -q", out)
         run(f"discover {name}.csv -o {name}_report.json", out)
     for name, sim in SIMULATED.items():
@@ -101,8 +105,8 @@ def _walk(a, b, path, out):
 def compare(before: Path, after: Path) -> int:
     n_diff = 0
     for fa in sorted(before.iterdir()):
-        if fa.suffix not in (".csv", ".json") or fa.name.endswith("_sim.csv") \
-                or fa.name.endswith("_sim.json"):
+        if fa.suffix not in (".csv", ".json") or fa.stem.endswith("_sim") \
+                or any(k in fa.name for k in (".truth.", ".render.", ".rig.")):
             continue
         fb = after / fa.name
         if not fb.exists():

@@ -1,6 +1,7 @@
 """The fit core against series with known parameters (closed forms + seeded noise)."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -55,8 +56,7 @@ def test_free_lambda_curl_recovered():
 
 
 def test_fixed_stop_uses_sidecar_stop_and_reports_detected():
-    s = closed_form_series(**NOISE)
-    s.meta["t_stop_translation"] = 23.9
+    s = closed_form_series(**NOISE).with_meta(t_stop_translation=23.9)
     res = fit_series(s, fixed_stop=True)
     assert res.values["t_FS"] == 23.9
     assert res.to_dict()["t_FS_detected"] == 23.9
@@ -65,9 +65,8 @@ def test_fixed_stop_uses_sidecar_stop_and_reports_detected():
 
 def test_jointly_fitted_stop_removes_early_detection_bias():
     """A stop detected 4 frames early biases λ with --fixed-stop, not with t_F free."""
-    s = closed_form_series(lam_y=1.85, **NOISE, seed=5)
-    s.meta["t_stop_translation"] = 24.0 - 4 / 30
-    s.meta["t_stop_rotation"] = 24.0 - 4 / 30
+    s = closed_form_series(lam_y=1.85, **NOISE, seed=5).with_meta(
+        t_stop_translation=24.0 - 4 / 30, t_stop_rotation=24.0 - 4 / 30)
     free = fit_series(s).values
     assert free["t_FS"] == pytest.approx(24.0, abs=1 / 30)
     assert free["lambda_y"] == pytest.approx(1.85, abs=0.01)
@@ -98,8 +97,7 @@ def test_shot_types_and_null_keys(kind, lam_theta, lam_y, theta_F, y_F, expect):
 def test_never_stopping_shot_is_fitted_with_a_warning():
     s = closed_form_series(**NOISE)
     cut = s.data["t"] < 20.0
-    s.data = s.data[cut]
-    s.meta["t_stop_translation"] = s.meta["t_stop_rotation"] = None
+    s = replace(s, data=s.data[cut]).with_meta(t_stop_translation=None, t_stop_rotation=None)
     res = fit_series(s)
     assert any("did not stop" in w for w in res.warnings)
     assert res.values["lambda_y"] == pytest.approx(1.897, abs=0.03)
@@ -109,7 +107,7 @@ def test_never_stopping_shot_is_fitted_with_a_warning():
 
 def test_too_few_points_is_a_clear_error():
     s = closed_form_series()
-    s.data = s.data.iloc[:8]
+    s = replace(s, data=s.data.iloc[:8])
     with pytest.raises(FitError, match="too few"):
         fit_series(s)
 
@@ -127,6 +125,34 @@ def test_uncertainties_are_honest():
             hits[k] += abs(res.values[k] - truth[k]) <= 2 * res.errors[k]
     for k, n in hits.items():
         assert n / len(cases) >= 0.90, (k, n)
+
+
+def test_series_is_not_changed_and_a_second_fit_warns_again():
+    """fit_series never edits the series it is given: without a sidecar's stop times
+    both calls detect them and say so."""
+    s = closed_form_series(**NOISE)
+    meta = {k: v for k, v in s.meta.items() if not k.startswith("t_stop")}
+    s = replace(s, meta=meta)
+    before = json.dumps(s.meta, sort_keys=True, default=str)
+    data = s.data.copy()
+    w1, w2 = fit_series(s).warnings, fit_series(s).warnings
+    assert any("no sidecar with stop times" in w for w in w1) and w1 == w2
+    assert json.dumps(s.meta, sort_keys=True, default=str) == before
+    assert s.data.equals(data)
+
+
+def test_weights_are_the_measured_noise_not_the_claimed_one():
+    """A tracker that claims 3x its real noise (sigma_xy column) does not make the fit
+    look 9x too good: the level comes from the data (as discover weighs the shot), the
+    column only shapes it from frame to frame."""
+    entropy = np.random.SeedSequence().entropy
+    rng = np.random.default_rng(entropy)
+    case = next(_cases(1, int(rng.integers(1 << 30))))
+    s = closed_form_series(**case, **NOISE)
+    data = s.data.assign(sigma_xy=3 * NOISE["noise_m"], sigma_theta=3 * NOISE["noise_rad"])
+    extra = fit_series(replace(s, data=data)).to_dict()
+    for key in ("chisqr_reduced_xy", "chisqr_reduced_theta"):
+        assert 0.75 < extra[key] < 1.3, (key, extra[key], f"entropy {entropy}")
 
 
 # --- honest on data we did not make (issue 18) -------------------------------------------

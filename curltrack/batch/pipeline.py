@@ -55,8 +55,8 @@ def track_and_fit(job: ShotJob, rig, shot_dir, options: BatchOptions) -> dict:
     write_series(shot_csv, series)
     series = read_series(shot_csv)
     fit_result = fit_series(series, rig=rig, fixed_stop=options.fixed_stop)
-    fit = fit_result.to_dict()
-    write_json(shot_dir / "FIT.json", fit_result.to_dict())
+    fit = fit_result.summary()
+    write_json(shot_dir / "FIT.json", fit)
     if options.plots:
         from ..plots import plot_fit
 
@@ -69,14 +69,13 @@ def track_and_fit(job: ShotJob, rig, shot_dir, options: BatchOptions) -> dict:
 
 def _discover(series: Series, rig, path: Path) -> dict:
     from ..discover import discover
-    from ..discover.report import public, write_json_report
+    from ..discover.report import write_json_report
 
     report = discover(series, rig=rig)
     write_json_report(report, path)
-    data = public(report)
-    best = (data.get("findings") or [{}])[0]
-    return {"verdict": data.get("verdict"), "best_effect": best.get("effect"),
-            "best_delta_bic": best.get("delta_bic")}
+    best = report.findings[0] if report.findings else None
+    return {"verdict": report.verdict, "best_effect": best and best.effect,
+            "best_delta_bic": best and best.delta_bic}
 
 
 def tracking_quality(series: Series) -> dict:

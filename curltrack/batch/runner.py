@@ -227,6 +227,12 @@ def run_batch(directory, rig, outdir, *, workers: int | None = None,
     CurltrackError
         Bad folder, rig or ``shots.csv``, no videos, unreachable scheduler.  A shot that
         fails does not raise: it is recorded and the batch goes on.
+
+    Examples
+    --------
+    >>> from curltrack import load_rig, run_batch
+    >>> summary = run_batch("videos/", load_rig("fixtures/rig.toml"), "campaign/",
+    ...                     workers=2)                                      # doctest: +SKIP
     """
     from .table import read_shot_metadata, write_campaign
 

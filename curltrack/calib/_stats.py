@@ -26,10 +26,3 @@ def median(a, axis=None):
         return np.partition(a, k, axis=axis).take(k, axis=axis)
     p = np.partition(a, (k - 1, k), axis=axis)
     return 0.5 * (p.take(k - 1, axis=axis) + p.take(k, axis=axis))
-
-
-def mad_sigma(a, centre=None):
-    """1.4826 x median absolute deviation from ``centre`` (default the median)."""
-    a = np.asarray(a)
-    c = median(a) if centre is None else centre
-    return 1.4826 * median(np.abs(a - c))

@@ -290,6 +290,14 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
     TrackingError
         "no grid found" when fewer than two periodic thread families are visible or the
         fit does not hold together.
+
+    Examples
+    --------
+    >>> import cv2
+    >>> from curltrack import calibrate_frame, load_rig
+    >>> rig = load_rig("fixtures/rig.toml")                  # doctest: +SKIP
+    >>> cal = calibrate_frame(cv2.imread("frame.png"), rig)   # doctest: +SKIP
+    >>> cal.to_dict()["k1"], cal.spacing_px                   # doctest: +SKIP
     """
     img = np.asarray(image_bgr)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:

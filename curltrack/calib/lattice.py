@@ -24,21 +24,6 @@ from .lens import apply_h, undistort
 MIN_PERIOD_PX = 16.0  # shortest thread spacing looked for (px)
 
 
-def _spectrum_peak(mag, fx, fy, exclude_dir=None, min_angle_deg: float = 25.0):
-    """Strongest spectral peak (fx, fy) in cycles/px, optionally away from a direction.
-
-    The peak may be a harmonic; :func:`_fundamental_period` finds the period itself.
-    """
-    m = mag.copy()
-    if exclude_dir is not None:
-        ang = np.arctan2(fy, fx)
-        d = np.abs((ang - np.arctan2(exclude_dir[1], exclude_dir[0]) + np.pi / 2) % np.pi
-                   - np.pi / 2)
-        m[d < np.radians(min_angle_deg)] = 0
-    i = np.unravel_index(np.argmax(m), m.shape)
-    return np.array([fx[i], fy[i]]), float(m[i])
-
-
 def _fundamental_period(rel, w, normal, min_period, max_period):
     """Period (px) of the threads across ``normal``: first strong autocorrelation peak.
 

@@ -27,6 +27,9 @@ def discover(
     seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
     rig: Optional[Path] = typer.Option(None, "--rig",
                                        help="Rig TOML: the rock's R and r (defaults otherwise)."),
+    extensions: bool = typer.Option(True, "--extensions/--no-extensions",
+                                    help="Also try data-driven extensions of the equations "
+                                         "(verdict 'extended')."),
 ):
     """What the simulation gets wrong in measured shots, its named cause, the extended
     model and its gain (delta-BIC, held-out error, residual tests)."""
@@ -45,6 +48,8 @@ def discover(
     check_outputs([*shots, *(sidecar_path(p) for p in shots), rig],
                   [("-o", output), ("--plot", plot)])
     report = run([str(p) for p in shots], baseline=baseline.value, seed=seed,
-                 rig=load_rig(rig) if rig is not None else None)
+                 rig=load_rig(rig) if rig is not None else None, extensions=extensions)
     write_report(report, output, plot)
     typer.echo(f"verdict: {report['verdict']}  ({output})")
+    if report.get("extension"):
+        typer.echo(f"extension: {report['extension']['summary']}")

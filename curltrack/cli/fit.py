@@ -6,6 +6,7 @@ from pathlib import Path
 
 import typer
 
+from ..rig import BAND_RADIUS_M, INERTIA_RADIUS_M
 from ._app import app, check_outputs, guarded
 
 
@@ -17,7 +18,8 @@ def fit(
     output: Path = typer.Option(..., "-o", "--output", help="FIT.json to write."),
     plot: Path = typer.Option(None, "--plot", help="PNG: data, fits and residuals for x, y, θ."),
     rig: Path = typer.Option(None, "--rig", help="Rig TOML for R (inertia_radius_m) and r "
-                             "(band_radius_m); defaults 0.14 m and 0.0625 m."),
+                             f"(band_radius_m); defaults {INERTIA_RADIUS_M} m and "
+                             f"{BAND_RADIUS_M} m."),
     fixed_stop: bool = typer.Option(False, "--fixed-stop", help="Hold t_F at the detected stop "
                                     "times (the paper's procedure) instead of fitting it."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
@@ -35,7 +37,7 @@ def fit(
     check_outputs([series, sidecar_path(series), rig], [("-o", output), ("--plot", plot)])
     s = read_series(series)
     result = fit_series(s, load_rig(rig) if rig else None, fixed_stop=fixed_stop)
-    write_json(output, result.to_dict())
+    write_json(output, result.summary())
     if plot:
         from ..plots import plot_fit
 

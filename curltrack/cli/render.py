@@ -39,7 +39,8 @@ def render(
     truth: Optional[Path] = typer.Option(None, "--truth", help="Truth series (.csv/.parquet); "
                                          "default VIDEO.truth.csv."),
     seed: int = typer.Option(0, "--seed", help="Seed of every random choice."),
-    camera: str = typer.Option("ladder", "--camera", help="ladder | handheld | static."),
+    camera: str = typer.Option("ladder", "--camera", help="ladder | handheld | static | "
+                               "pole."),
     camera_height_m: Optional[float] = typer.Option(None, "--camera-height-m",
                                                     help="Lens height above the ice (m)."),
     width: int = typer.Option(960, "--width", help="Image width (px)."),
@@ -107,6 +108,12 @@ def render(
                                             "PyAV codecs)."),
     rotation: int = typer.Option(0, "--rotation", help="Display rotation tag (deg: 0, 90, "
                                  "180, 270; PyAV codecs)."),
+    shadow: float = typer.Option(0.0, "--shadow", help="Depth (0-0.9) of a person's soft "
+                                 "shadow walking beside the rock; 0 = none."),
+    glare: float = typer.Option(10.0, "--glare", help="Peak level (0-255) of the lamps' "
+                                "reflections sliding over the ice (specular: 80-200)."),
+    glare_spread: float = typer.Option(0.12, "--glare-spread-rad", help="Their angular "
+                                       "spread (rad; specular: 0.03-0.06)."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress output."),
 ):
     from ..render import (CameraConfig, EncodingConfig, IceStyle, RenderConfig, SensorConfig,
@@ -163,7 +170,8 @@ def render(
                        blur_subframes=blur_subframes, shutter=shutter, read_noise=noise,
                        jpeg_quality=jpeg_quality or None, occlusion=occlusion,
                        occlusion_t_s=occlusion_t_s, stopped_tail_s=stopped_tail_s, ice=ice,
-                       sensor=sensor, encoding=enc)
+                       sensor=sensor, encoding=enc, shadow=shadow, glare=glare,
+                       glare_spread_rad=glare_spread)
     result = render_video(series, the_rig, output, truth_path, config=cfg, seed=seed,
                           progress=not quiet)
     m = result.meta

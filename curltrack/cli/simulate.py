@@ -8,6 +8,7 @@ from typing import List, Optional
 import typer
 
 from ..physics.effects import EFFECTS
+from ..rig import BAND_RADIUS_M, INERTIA_RADIUS_M
 from ._app import app, check_outputs, fail, guarded
 
 _HELP = f"""Simulate a shot and write it as a SHOT.csv-format series (and sidecar SIM.json).
@@ -17,8 +18,8 @@ from above.  omega0 > 0 is a counter-clockwise spin, which curls to -x.
 
 Defaults (paper model) are the paper's pebbled-ice draw: phi_y = -0.19,
 alpha_y = 0.0076 (m/s)^0.19, phi_theta = -1.198 (its lambda_theta = 1.455), alpha_theta
-tied so that rotation stops when translation does, a_T = 5e-3 m/s^2, R = 0.14 m,
-r = 0.0625 m (or the rig's).  `--v0 2.0 --omega0 1.5` gives a ~26 s draw with ~0.9 m
+tied so that rotation stops when translation does, a_T = 5e-3 m/s^2, R = {INERTIA_RADIUS_M} m,
+r = {BAND_RADIUS_M} m (or the rig's).  `--v0 2.0 --omega0 1.5` gives a ~26 s draw with ~0.9 m
 of curl.  --phi/--alpha set both channels; --phi-y ... override per channel.
 
 Effects: --effect NAME followed by its --param KEY=VALUE (names: {', '.join(EFFECTS)}).

@@ -89,9 +89,9 @@ def track(
                          exclude_frames=excl, overlay_path=overlay,
                          progress=not no_progress and sys.stderr.isatty(),
                          debug_frames=debug, debug_dir=debug_dir, corrections=corrections)
-    series.meta["rig"] = str(rig)
-    if overlay is not None:
-        series.meta["overlay"] = str(overlay)  # `curltrack review` embeds it
+    # (`curltrack review` embeds the overlay)
+    series = series.with_meta(rig=str(rig), **({} if overlay is None else
+                                                {"overlay": str(overlay)}))
     side = write_series(output, series)
     if not quiet:
         m = series.meta

@@ -2,14 +2,17 @@
 
 Pipeline (one module per step):
 
-* :mod:`.shots`      -- measured rows, stop times, starting values; :mod:`.noise` --
-  the measurement noise (sigma and AR(1) correlation) of every coordinate, from the data;
+* :mod:`.shots`      -- measured rows, stop times and noise (the series layer,
+  :mod:`curltrack.series`), starting values;
 * :mod:`.model`      -- the baseline (the paper's model, or ``dry`` with phi = 0) fitted
   jointly to all shots with :func:`curltrack.physics.simulate`;
 * :mod:`.residuals`  -- structure tests on the baseline's whitened residuals;
 * :mod:`.candidates` -- the nested extensions (the simulator's effect terms);
 * :mod:`.search`, :mod:`.scoring` -- delta-BIC, look-elsewhere-calibrated thresholds
   (parametric block bootstrap), blocked and leave-one-shot-out cross-validation;
+* :mod:`.extend`     -- data-driven extensions of the equations (friction field along
+  the sheet, spin-speed couplings, the curl's dependence on the spin), scored like the
+  candidates, with a description and the fitted function;
 * :mod:`.report`     -- REPORT.json and the figure.
 
 Decision rule
@@ -22,7 +25,15 @@ family-wise level :data:`residuals.STRUCTURE_LEVEL`) and no other candidate come
 :data:`report.AMBIGUITY_MARGIN` of its delta-BIC; otherwise ``unexplained`` (with the
 rivals under ``unexplained.ambiguous`` when the evidence cannot tell them apart).  With
 no supported candidate: ``unexplained`` if the baseline residuals are structured, else
-``none``.
+``none``.  Delta-BIC, threshold and the structure after are measured under the noise
+the candidate's own residuals show (:func:`.search.rescore`: an instrument's persisting
+errors and heavy tails, which the AR(1) model misses).  A supported candidate with a
+parameter at its bound, or one that makes any coordinate's RMS or held-out RMS worse,
+is not named (``not_named_because``); a baseline parameter at its bound blocks any name.
+An extension (:mod:`.extend`) gives the verdict ``extended`` only when it
+is supported, its residuals look like noise, and it beats every named effect and every
+other extension by the same margin; a named effect that explains the data about as well
+keeps its name.
 """
 
 from __future__ import annotations
@@ -36,16 +47,18 @@ from ..errors import InputError
 from . import scoring
 from .candidates import build_candidates, untested
 from .model import JointModel
+from .results import DiscoveryReport, Finding
 from .residuals import structure_tests
 from .search import (NONLINEAR_MARGIN, block_lengths, folds_shot, folds_time, heldout,
                      refine_candidate, rescore, residual_noise, score_candidate, segments_of)
 from .shots import shot_from_series
 
-__all__ = ["discover", "write_report"]
+__all__ = ["discover", "write_report", "DiscoveryReport", "Finding"]
 
 
 def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
-             n_boot: int = scoring.N_BOOT, effects=None) -> dict:
+             n_boot: int = scoring.N_BOOT, effects=None,
+             extensions: bool = True) -> DiscoveryReport:
     """Find what the baseline model gets wrong in one or more measured shots.
 
     Parameters
@@ -63,20 +76,35 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     n_boot : int
         Bootstrap replicates per candidate.
     effects : list of str, optional
-        Restrict the candidates to these names.
+        Restrict the candidates to these names (extension kinds included).
+    extensions : bool
+        Also try the data-driven extension terms (:mod:`.extend`); verdict
+        ``extended`` when one of them, and no named effect, explains the residuals.
 
     Returns
     -------
-    dict
-        The REPORT.json content (see the contract): ``baseline``, ``findings`` sorted by
-        ``delta_bic``, ``verdict``, plus ``noise``, ``structure_before``, ``unexplained``
-        and ``warnings``.  Private keys starting with ``_`` carry the fitted objects for
-        the plot and are not serialised.
+    DiscoveryReport
+        Frozen; ``summary()`` is the REPORT.json content (see the contract):
+        ``baseline``, ``findings`` sorted by ``delta_bic``, ``verdict``, ``extension`` (or None), plus
+        ``noise``,
+        ``structure_before``, ``unexplained``, ``warnings`` and ``not_tested``.  It reads
+        like that mapping too (``report["verdict"]``); its attributes are typed
+        (``report.findings[0].delta_bic``) and carry the fitted models for the figure.
 
     Raises
     ------
     CurltrackError
         Unreadable or unusable input (one line naming the file and field).
+
+    Examples
+    --------
+    >>> from curltrack import Effect, ShotModel, discover, simulate_series
+    >>> patch = Effect("friction_patch", {"y_start_m": 8.0, "y_end_m": 12.0, "factor": 1.3})
+    >>> s = simulate_series(ShotModel(v0=2.0, omega0=1.5), [patch], noise_m=0.002,
+    ...                     noise_rad=0.005, seed=1)
+    >>> rep = discover(s)                                          # doctest: +SKIP
+    >>> rep.verdict, rep.findings[0].params["factor"]              # doctest: +SKIP
+    ('friction_patch', 1.29...)
     """
     from ..sanity import bound_rows, check_units
     from ..series import Series, read_series
@@ -98,7 +126,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
                                  f"{len(s.data) + 1}")
     unit_warnings = [w for s in sers for w in check_units(s)]  # raises on a unit mistake
     sers, thinned = bound_rows(sers)  # bounded memory: at most DISCOVER_MAX_ROWS rows
-    shots = [shot_from_series(s) for s in sers]
+    shots = [shot_from_series(s, rig) for s in sers]
     names = ", ".join(s.name for s in sers)
     rng = np.random.default_rng(seed)
 
@@ -118,6 +146,8 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     h0_loso = heldout(fit0, f_shot, base) if f_shot is not None else None
 
     cands = build_candidates(shots, baseline)
+    if not extensions:
+        cands = [c for c in cands if not c.extension]
     if effects:
         cands = [c for c in cands if c.name in set(effects)]
     from ..progress import progress_bar  # on a terminal only: the bootstrap takes seconds
@@ -156,9 +186,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     for sc in scores:
         rescore(sc, base, fit0, rng, n_boot=n_boot)
 
-    from .report import build_report
-
-    from .report import at_bound
+    from .report import at_bound, build_report
 
     # a candidate's own parameters at a bound (a spin impulse at its -10 rad/s limit)
     cand_bounds = {}
@@ -166,14 +194,32 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
         if sc.fit is not None:
             cand_bounds[sc.name] = at_bound(sc.fit, sc._model.bounds,
                                             [p.name for p in by_name[sc.name].params])
-    report = build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds)
-    report["not_tested"] = untested(shots, baseline)
-    report["warnings"] = [*unit_warnings, *thinned, *report.get("warnings", [])]
-    return report
+    return build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds,
+                        not_tested=untested(shots, baseline),
+                        warnings=[*unit_warnings, *thinned])
 
 
-def write_report(report: dict, path, plot=None) -> None:
-    """Write REPORT.json (and the figure) atomically."""
+def write_report(report: DiscoveryReport, path, plot=None) -> None:
+    """Write REPORT.json (and the figure) atomically.
+
+    Parameters
+    ----------
+    report : DiscoveryReport
+        From :func:`discover`; the file is ``report.summary()`` (NaN/inf as null).
+    path : str or Path
+        REPORT.json.
+    plot : str or Path, optional
+        PNG of data, baseline, extended model and residuals per shot and coordinate.
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    >>> from curltrack import discover, write_report
+    >>> write_report(discover("shot.csv"), "report.json", plot="report.png")  # doctest: +SKIP
+    """
     from .report import plot_report, write_json_report
 
     write_json_report(report, path)

@@ -27,25 +27,14 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..errors import FitError
+from ..physics.params import SHOT_MODEL, covariance
 from ..rig import default_rig
 from .candidates import Candidate, effects_for
-from .noise import whiten_matrix_apply
+from ..series.noise import whiten
 from .shots import COORDS
 
 SHARED = ("phi_y", "alpha_y", "phi_theta", "alpha_theta", "a_T")
 PER_SHOT = ("v0", "omega0", "x0", "y0", "theta0", "skew")
-
-#: (lower, upper, finite-difference step) of every baseline parameter (an effect's come
-#: from its definition in the registry, :mod:`curltrack.physics.effects`)
-_BOUNDS = {
-    "phi_y": (-3.0, 0.9, 1e-4), "phi_theta": (-3.0, 0.9, 1e-4),
-    "alpha_y": (1e-6, 5.0, None), "alpha_theta": (1e-6, 5.0, None),
-    "a_T": (0.0, 1.0, 2e-6),
-    "v0": (0.0, 20.0, 1e-5), "omega0": (-60.0, 60.0, 1e-5),
-    "x0": (-1.0, 1.0, 1e-5), "y0": (-1.0, 1.0, 1e-5), "theta0": (-1.0, 1.0, 1e-5),
-    "skew": (-0.5, 0.5, 1e-5),
-}
-
 
 def _base(name: str) -> str:
     return name.split("[")[0]
@@ -57,7 +46,8 @@ def _shot_of(name: str):
 
 @dataclass
 class FitOut:
-    """A fitted joint model (lmfit-like): values, errors, chi-square, Jacobian.
+    """A fitted joint model (lmfit-like: ``success``, ``message``, ``var_names``,
+    ``covar``, ``bic``, ``redchi``): values, errors, chi-square, Jacobian.
 
     Attributes
     ----------
@@ -96,30 +86,27 @@ class FitOut:
     def k(self) -> int:
         return len(self.free)
 
+    # lmfit's names for the same things
+    @property
+    def var_names(self) -> list:
+        return list(self.free)
+
+    @property
+    def covar(self) -> np.ndarray:
+        return self.cov
+
+    @property
+    def bic(self) -> float:
+        """chi-square + k ln n (the noise is known: whitened residuals)."""
+        return float(self.chi2 + self.k * np.log(self.n))
+
+    @property
+    def redchi(self) -> float:
+        return self.chi2 / max(self.n - self.k, 1)
+
     def err(self, name: str) -> float:
         i = self.free.index(name) if name in self.free else None
         return float(np.sqrt(max(self.cov[i, i], 0.0))) if i is not None else 0.0
-
-
-def covariance(J) -> np.ndarray:
-    """(J^T J)^-1 computed on unit-norm columns (parameters differ by 10 orders of
-    magnitude in scale); NaN when singular."""
-    d = np.linalg.norm(J, axis=0)
-    d = np.where(d > 0, d, 1.0)
-    try:
-        u, s, vt = np.linalg.svd(J / d, full_matrices=False)
-    except np.linalg.LinAlgError:
-        return np.full((J.shape[1],) * 2, np.nan)
-    if s.size == 0:
-        return np.zeros((J.shape[1],) * 2)
-    ok = s > 1e-10 * s[0]
-    c = (vt[ok].T / s[ok] ** 2) @ vt[ok]
-    # parameters that move along a singular direction are not determined: infinite error
-    loose = (vt[~ok] ** 2).sum(axis=0) > 1e-6
-    c[loose, :] = np.nan
-    c[:, loose] = np.nan
-    c[loose, loose] = np.inf
-    return c / d[:, None] / d[None, :]
 
 
 class JointModel:
@@ -144,6 +131,7 @@ class JointModel:
         rig = rig or default_rig()
         self.R, self.r_band = rig.inertia_radius_m, rig.band_radius_m
         self.shots, self.baseline, self.cand = shots, baseline, cand
+        self._sims: dict = {}
         self.values: dict = {}
         self.bounds: dict = {}
         self.free: list = []
@@ -184,8 +172,8 @@ class JointModel:
                 if use:
                     self.free.append(key)
         for name in self.free + list(self.values):
-            lo, hi, _ = _BOUNDS[_base(name)]
-            self.bounds[name] = (lo, hi)
+            spec = SHOT_MODEL[_base(name)]
+            self.bounds[name] = (spec.lower, spec.upper)
         self._cand_steps = {p.name: p.step for p in cand.params if p.step is not None} \
             if cand is not None else {}
         if cand is not None:
@@ -233,7 +221,16 @@ class JointModel:
                                 alpha_y=v.get(f"alpha_y[{i}]", v["alpha_y"]),
                                 a_T=v["a_T"], R=self.R, r=self.r_band, **spin)
         eff = effects_for(self.cand, self._effect_values(v), i, self.shots)
-        tr = self._simulate(model, effects=eff, t=t)
+        # the frame offsets and skew (4 of a shot's 6 Jacobian columns) do not change the
+        # simulation: the last few per shot are reused (an extension's ODE costs ~50 ms)
+        key = (i, model, tuple((e.name, tuple(e.params.items())) for e in eff))
+        tr = self._sims.get(key) if t is s.t else None
+        if tr is None:
+            tr = self._simulate(model, effects=eff, t=t)
+            if t is s.t:
+                if len(self._sims) >= 4 * len(self.shots):
+                    self._sims.pop(next(iter(self._sims)))
+                self._sims[key] = tr
         c, sn = np.cos(v[f"skew[{i}]"]), np.sin(v[f"skew[{i}]"])
         x, y = np.asarray(tr.x), np.asarray(tr.y)
         return {"x": v[f"x0[{i}]"] + c * x - sn * y, "y": v[f"y0[{i}]"] + sn * x + c * y,
@@ -268,7 +265,7 @@ class JointModel:
         sig = self.sigma_vector()
         out = v / (sig if v.ndim == 1 else sig[:, None])
         for j, c, sl in self._segments:
-            out[sl] = whiten_matrix_apply(out[sl], self.shots[j].noise[c].rho)
+            out[sl] = whiten(out[sl], self.shots[j].noise[c].rho)
         return out
 
     # --- parameters -----------------------------------------------------------------
@@ -290,7 +287,7 @@ class JointModel:
         return None  # all shots
 
     def _step(self, name, value):
-        st = self._cand_steps[name] if name in self._cand_steps else _BOUNDS[_base(name)][2]
+        st = self._cand_steps[name] if name in self._cand_steps else SHOT_MODEL[_base(name)].step
         return st if st is not None else max(1e-4 * abs(value), 1e-9)
 
     def jacobian_raw(self, values, base_vec=None, base_preds=None):

@@ -1,12 +1,14 @@
-"""REPORT.json content, the verdict, and the figure."""
+"""The report (:class:`~.results.DiscoveryReport`), the verdict, and the figure."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from .._atomic import atomic_path, write_json
+from .extend import choose as choose_extension
+from .extend import extension_object
 from .residuals import binned_means
-from .scoring import bic
+from .results import DiscoveryReport, Finding
 from .shots import COORDS
 
 #: a candidate is named only if its delta-BIC beats every other candidate's by at least
@@ -119,62 +121,74 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN) -> list:
     return sorted(out)
 
 
-def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=None) -> dict:
-    """Assemble REPORT.json and decide the verdict (rule in :mod:`curltrack.discover`).
+def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
+    """The finding of one scored candidate (supported or not; a supported one lists what
+    blocks its name, ``cand_bounds`` being its parameters at a bound)."""
+    thr = sc.threshold["threshold"]
+    kw = dict(effect=sc.name, delta_bic=sc.delta_bic, delta_bic_linear=sc.delta_bic_linear,
+              threshold=thr, bootstrap=sc.threshold, location_start=sc.location,
+              rms_before=rms0, rms_after=None, heldout_rmse_before=h0["scalar"],
+              heldout_rmse_after=None, heldout_before_by_coord={c: h0[c] for c in COORDS},
+              params=sc.params, params_err=sc.params_err, note=sc.note, nfev=sc.nfev,
+              evidence=_evidence(sc, h0), fit=sc.fit,
+              extension=True if getattr(sc, "extension", None) else None)
+    if sc.fit is None:
+        return Finding(**kw)
+    kw.update(rms_after=_rms_by_coord(base, sc.fit.r_raw),
+              heldout_rmse_after=sc.heldout["time"]["scalar"],
+              heldout_after_by_coord={c: sc.heldout["time"][c] for c in COORDS},
+              structure_after={"p_min_adjusted": sc.structure_after.p_min_adjusted,
+                               "structured": sc.structure_after.structured,
+                               "where": sc.structure_after.where})
+    ok_cv = kw["heldout_rmse_after"] < kw["heldout_rmse_before"]
+    if h0_loso is not None and "shot" in sc.heldout:
+        kw.update(loso_rmse_before=h0_loso["scalar"],
+                  loso_rmse_after=sc.heldout["shot"]["scalar"])
+        ok_cv = ok_cv or kw["loso_rmse_after"] < kw["loso_rmse_before"]
+    kw["supported"] = bool(sc.delta_bic > max(thr, 0.0) and ok_cv)
+    if kw["supported"]:
+        kw["not_named_because"] = _blockers(kw, cand_bounds)
+        if kw["not_named_because"]:
+            kw["evidence"] += "; not named: " + "; ".join(kw["not_named_because"])
+    return Finding(**kw)
 
-    ``cand_bounds`` maps a candidate's name to its parameters at a bound (list of str).
+
+def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=None,
+                 not_tested=None, warnings=()) -> DiscoveryReport:
+    """Assemble the report and decide the verdict (rule in :mod:`curltrack.discover`).
+
+    ``cand_bounds`` maps a candidate's name to its parameters at a bound (list of str);
+    ``warnings`` come first in the report's (the input's: units, thinning).
     """
     n = fit0.n
-    cand_bounds = cand_bounds or {}
-    base_bound = at_bound(fit0, base.bounds)
-    warnings = [f"baseline ({base.baseline}) parameter {b}: the baseline does not describe "
-                f"these shots within its range; no cause is named" for b in base_bound]
     rms0 = _rms_by_coord(base, fit0.r_raw)
     vals, errs = _baseline_params(fit0)
-    findings = []
-    supported = []
-    for sc in scores:
-        thr = sc.threshold["threshold"]
-        f = {"effect": sc.name, "delta_bic": sc.delta_bic, "delta_bic_linear": sc.delta_bic_linear,
-             "threshold": thr, "bootstrap": sc.threshold, "location_start": sc.location,
-             "rms_before": rms0, "rms_after": None,
-             "heldout_rmse_before": h0["scalar"], "heldout_rmse_after": None,
-             "heldout_before_by_coord": {c: h0[c] for c in COORDS},
-             "heldout_after_by_coord": None, "params": sc.params, "params_err": sc.params_err,
-             "note": sc.note, "nfev": sc.nfev}
-        if sc.fit is not None:
-            f["rms_after"] = _rms_by_coord(base, sc.fit.r_raw)
-            f["heldout_rmse_after"] = sc.heldout["time"]["scalar"]
-            f["heldout_after_by_coord"] = {c: sc.heldout["time"][c] for c in COORDS}
-            if h0_loso is not None and "shot" in sc.heldout:
-                f["loso_rmse_before"] = h0_loso["scalar"]
-                f["loso_rmse_after"] = sc.heldout["shot"]["scalar"]
-            f["structure_after"] = {"p_min_adjusted": sc.structure_after.p_min_adjusted,
-                                    "structured": sc.structure_after.structured,
-                                    "where": sc.structure_after.where}
-            ok_cv = f["heldout_rmse_after"] < f["heldout_rmse_before"]
-            if "loso_rmse_after" in f:
-                ok_cv = ok_cv or f["loso_rmse_after"] < f["loso_rmse_before"]
-            f["supported"] = bool(sc.delta_bic > max(thr, 0.0) and ok_cv)
-            if f["supported"]:
-                f["not_named_because"] = _blockers(f, cand_bounds.get(sc.name, []))
-        else:
-            f["supported"] = False
-        f["evidence"] = _evidence(sc, h0)
-        if f.get("not_named_because"):
-            f["evidence"] += "; not named: " + "; ".join(f["not_named_because"])
-        findings.append(f)
-        if f["supported"]:
-            supported.append((sc, f))
-    blocked = [(sc, f) for sc, f in supported if f.get("not_named_because")]
-    supported = [(sc, f) for sc, f in supported if not f.get("not_named_because")]
-    verdict, unexplained = "none", None
+    cand_bounds = cand_bounds or {}
+    base_bound = at_bound(fit0, base.bounds)
+    bound_warnings = [f"baseline ({base.baseline}) parameter {b}: the baseline does not "
+                      f"describe these shots within its range; no cause is named"
+                      for b in base_bound]
+    findings = [_finding(sc, rms0, h0, h0_loso, base, cand_bounds.get(sc.name, []))
+                for sc in scores]
+    supported = [(sc, f) for sc, f in zip(scores, findings) if f.supported]
+    blocked = [(sc, f) for sc, f in supported if f.not_named_because]
+    supported = [(sc, f) for sc, f in supported if not f.not_named_because]
+    verdict, unexplained, extension = "none", None, None
     best_fit, best_model_name, best_params = fit0, None, {}
     ambiguous = []
-    if supported:
-        sc, f = max(supported, key=lambda p: p[0].delta_bic)
+    # a data-driven extension speaks only when it beats every named effect (discover.extend)
+    ext = None if base_bound else choose_extension(supported, scores, AMBIGUITY_MARGIN)
+    named = [sc for sc in scores if not sc.extension]
+    supported_named = [(sc, f) for sc, f in supported if not sc.extension]
+    if ext is not None:
+        verdict = "extended"
+        best_fit, best_model_name, best_params = ext.fit, ext.name, ext.params
+        extension = extension_object(ext, next(f for sc, f in supported if sc is ext).summary(),
+                                     shots, h0, h0_loso)
+    elif supported_named:
+        sc, f = max(supported_named, key=lambda p: p[0].delta_bic)
         best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
-        ambiguous = rivals(sc, scores)
+        ambiguous = rivals(sc, named)
         if base_bound:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
@@ -189,10 +203,16 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
         else:
             verdict = sc.name
     elif before.structured or blocked:
+        # an extension that clears its threshold but is not chosen (its residuals stay
+        # structured, or another explains it alike) does not turn residuals that look
+        # like noise into 'unexplained': under the real-data noise classes that would
+        # add false alarms; it stays listed among the findings
         verdict = "unexplained"
         unexplained = dict(before.where or {}, after_model="baseline")
+        if len(supported) > 1:   # extensions that explain it alike: no one description
+            unexplained["ambiguous"] = [sc.name for sc, _ in supported]
         if blocked:
-            unexplained["not_named"] = {sc.name: f["not_named_because"] for sc, f in blocked}
+            unexplained["not_named"] = {sc.name: f.not_named_because for sc, f in blocked}
     if verdict == "unexplained":
         gain, k = _unexplained_gain(base, best_fit)
         w = unexplained
@@ -210,65 +230,60 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                         f"structured (a free mean in 10 time bins per series gains "
                         f"chi-square {gain:.1f} for {k} parameters); the largest misfit "
                         f"sits at {where_txt}")
-        findings.append({
-            "effect": "unexplained", "delta_bic": float(gain - k * np.log(n)),
-            "rms_before": rms0, "rms_after": _rms_by_coord(base, best_fit.r_raw),
-            "heldout_rmse_before": h0["scalar"], "heldout_rmse_after": None,
-            "params": {}, "params_err": {}, "where": unexplained, "evidence": evidence})
-    findings.sort(key=lambda f: -np.inf if f["delta_bic"] is None else -f["delta_bic"])
-    report = {
-        "baseline": {"model": base.baseline, "params": vals, "params_err": errs,
-                     "rms": rms0, "bic": bic(fit0.chi2, fit0.k, n),
-                     "chi2": fit0.chi2, "n_points": n, "k": fit0.k,
-                     "heldout_rmse": h0["scalar"],
-                     "heldout_by_coord": {c: h0[c] for c in COORDS},
-                     "loso_rmse": h0_loso["scalar"] if h0_loso else None},
-        "findings": findings,
-        "verdict": verdict,
-        "unexplained": unexplained,
-        "structure_before": {"p_min_adjusted": before.p_min_adjusted,
-                             "structured": before.structured, "where": before.where,
-                             "tests": before.tests},
-        "noise": [{"file": s.name, **{c: s.noise[c].as_dict() for c in COORDS}}
-                  for s in shots],
-        "shots": [{"file": s.name, "spin": s.spin, "translates": s.translates,
-                   "spins": s.spins, "t_stop_translation": s.t_stop_translation,
-                   "t_stop_rotation": s.t_stop_rotation,
-                   "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
-        "warnings": [w for s in shots for w in s.warnings] + warnings,
-        "_plot": {"shots": shots, "model": base, "fit0": fit0, "fit1": best_fit,
-                  "extended": best_model_name, "params": best_params},
-    }
-    return report
+        findings.append(Finding(
+            effect="unexplained", delta_bic=float(gain - k * np.log(n)), rms_before=rms0,
+            rms_after=_rms_by_coord(base, best_fit.r_raw), heldout_rmse_before=h0["scalar"],
+            heldout_rmse_after=None, params={}, params_err={}, where=unexplained,
+            evidence=evidence, fit=best_fit))
+    findings.sort(key=lambda f: -np.inf if f.delta_bic is None else -f.delta_bic)
+    return DiscoveryReport(
+        verdict=verdict, findings=tuple(findings),
+        baseline={"model": base.baseline, "params": vals, "params_err": errs,
+                  "rms": rms0, "bic": fit0.bic,
+                  "chi2": fit0.chi2, "n_points": n, "k": fit0.k,
+                  "heldout_rmse": h0["scalar"],
+                  "heldout_by_coord": {c: h0[c] for c in COORDS},
+                  "loso_rmse": h0_loso["scalar"] if h0_loso else None},
+        extension=extension, unexplained=unexplained,
+        structure_before={"p_min_adjusted": before.p_min_adjusted,
+                          "structured": before.structured, "where": before.where,
+                          "tests": before.tests},
+        noise=[{"file": s.name, **{c: s.noise[c].as_dict() for c in COORDS}} for s in shots],
+        shots=[{"file": s.name, "spin": s.spin, "translates": s.translates,
+                "spins": s.spins, "t_stop_translation": s.t_stop_translation,
+                "t_stop_rotation": s.t_stop_rotation,
+                "rink_heading_deg": float(np.degrees(s.heading_rad))} for s in shots],
+        warnings=[*warnings, *(w for s in shots for w in s.warnings), *bound_warnings],
+        not_tested=dict(not_tested or {}),
+        shot_data=list(shots), model=base, fit0=fit0, best_fit=best_fit,
+        extended=best_model_name, best_params=best_params)
 
 
-def public(report: dict) -> dict:
-    """The report without its private (``_``) keys, ready for JSON."""
-    return {k: v for k, v in report.items() if not k.startswith("_")}
-
-
-def write_json_report(report: dict, path) -> None:
+def write_json_report(report: DiscoveryReport, path) -> None:
     """Write REPORT.json atomically (NaN/inf become null)."""
-    write_json(path, public(report))
+    write_json(path, report.summary())
 
 
-def plot_report(report: dict, path, max_shots: int = 2) -> None:
+def plot_report(report: DiscoveryReport, path, max_shots: int = 2) -> None:
     """Data, baseline, extended model, and residuals before/after, per coordinate.
 
     One block of two rows per shot (at most ``max_shots``): the top row shows the data
     (dots), the baseline (line) and the extended model (dashed) for x, y (m) and theta
     (rad) against time; the bottom row their residuals (mm, mm, degrees) before (grey)
-    and after (colour) the extension.
+    and after (colour) the extension.  With a data-driven extension (verdict
+    ``extended``) a last row shows its fitted function with the 1-sigma band.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    p = report["_plot"]
-    shots, model, fit0, fit1, ext = p["shots"], p["model"], p["fit0"], p["fit1"], p["extended"]
+    shots, model, ext = report.shot_data, report.model, report.extended
+    fit0, fit1 = report.fit0, report.best_fit
     ns = min(len(shots), max_shots)
-    fig, axes = plt.subplots(2 * ns, 3, figsize=(13, 4.2 * ns), sharex="col", squeeze=False)
+    ext_obj = report.extension
+    fig, axes = plt.subplots(2 * ns + bool(ext_obj), 3, squeeze=False,
+                             figsize=(13, 4.2 * ns + (3.2 if ext_obj else 0.0)))
     scale = {"x": 1e3, "y": 1e3, "theta": np.degrees(1.0)}
     unit = {"x": "mm", "y": "mm", "theta": "deg"}
     for j in range(ns):
@@ -294,13 +309,21 @@ def plot_report(report: dict, path, max_shots: int = 2) -> None:
                 bot.plot(t, r1, ".", ms=2, color="C3", label=f"+ {ext}")
             bot.axhline(0, color="k", lw=0.6)
             bot.set_ylabel(f"residual {c} ({unit[c]})")
-            _mark_effect(top, bot, ext, p.get("params", {}), s, fit1.predictions[j], j)
+            if len(t) == 0:
+                top.text(0.5, 0.5, "not used", transform=top.transAxes, ha="center")
+            _mark_effect(top, bot, ext, report.best_params, s, fit1.predictions[j], j)
         axes[2 * j, 0].set_title(str(s.name).split("/")[-1], loc="left", fontsize=9)
         axes[2 * j, 0].legend(fontsize=7, loc="best")
         axes[2 * j + 1, 0].legend(fontsize=7, loc="best")
-    for ax in axes[-1]:
+    for ax in axes[2 * ns - 1]:
         ax.set_xlabel("t (s)")
-    fig.suptitle(f"verdict: {report['verdict']}", fontsize=11)
+    if ext_obj:  # the fitted function of the extension with its band, full width
+        from .extend import plot_function
+
+        for ax in axes[-1]:
+            ax.remove()
+        plot_function(fig.add_subplot(axes[0, 0].get_gridspec()[-1, :]), ext_obj)
+    fig.suptitle(f"verdict: {report.verdict}", fontsize=11)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110)

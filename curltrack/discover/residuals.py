@@ -1,7 +1,7 @@
 """Tests for structure in whitened residuals (what a model gets wrong, and where).
 
 Every function takes residuals that have been divided by the measurement noise and
-AR(1)-whitened (:mod:`curltrack.discover.noise`), so that under a correct model they are
+AR(1)-whitened (:mod:`curltrack.series.noise`), so that under a correct model they are
 close to independent unit-variance noise.  Tests:
 
 * positive autocorrelation up to ``h`` lags (variance-ratio form; one-sided, since a
@@ -24,10 +24,23 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from .noise import CORRELATED_TAU
+from ..series.noise import CORRELATED_TAU
 
 #: family-wise level at which residuals are called structured
 STRUCTURE_LEVEL = 0.01
+
+
+def _acf(r, h):
+    """(n, h, autocorrelations at lags 1..h) of ``r``; acf None when ``r`` is too short
+    (n < 3h) or constant.  Default h = min(20, n // 5)."""
+    r = np.asarray(r, dtype=float)
+    n = r.size
+    h = int(h or max(1, min(20, n // 5)))
+    c = r - r.mean()
+    denom = float(np.dot(c, c))
+    if n < 3 * h or denom == 0.0:
+        return n, h, None
+    return n, h, np.array([np.dot(c[k:], c[:-k]) / denom for k in range(1, h + 1)])
 
 
 def ljung_box(r, h: int | None = None) -> tuple[float, float]:
@@ -40,14 +53,9 @@ def ljung_box(r, h: int | None = None) -> tuple[float, float]:
     h : int, optional
         Number of lags; default ``min(20, n // 5)``.
     """
-    r = np.asarray(r, dtype=float)
-    n = r.size
-    h = int(h or max(1, min(20, n // 5)))
-    c = r - r.mean()
-    denom = float(np.dot(c, c))
-    if n < 3 * h or denom == 0.0:
+    n, h, acf = _acf(r, h)
+    if acf is None:
         return 0.0, 1.0
-    acf = np.array([np.dot(c[k:], c[:-k]) / denom for k in range(1, h + 1)])
     q = n * (n + 2) * float(np.sum(acf**2 / (n - np.arange(1, h + 1))))
     return q, float(stats.chi2.sf(q, h))
 
@@ -59,14 +67,9 @@ def variance_ratio(r, h: int | None = None) -> tuple[float, float]:
     noise model (over-whitening) makes them negative, which is not a misfit and is not
     flagged.  Returns (z, p) with p = P(Z > z).
     """
-    r = np.asarray(r, dtype=float)
-    n = r.size
-    h = int(h or max(1, min(20, n // 5)))
-    c = r - r.mean()
-    denom = float(np.dot(c, c))
-    if n < 3 * h or denom == 0.0:
+    n, h, acf = _acf(r, h)
+    if acf is None:
         return 0.0, 1.0
-    acf = np.array([np.dot(c[k:], c[:-k]) / denom for k in range(1, h + 1)])
     z = float(np.sqrt(n) * acf.sum() / np.sqrt(h))
     return z, float(stats.norm.sf(z))
 
@@ -137,7 +140,7 @@ class Segment:
     speed: np.ndarray
     spin: int = 1
     #: correlation time (samples) the noise itself leaves in ``r`` (see
-    #: :func:`curltrack.discover.noise.residual_structure`)
+    #: :func:`curltrack.series.noise.residual_structure`)
     tau: float = 1.0
 
 

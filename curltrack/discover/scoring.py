@@ -1,7 +1,7 @@
 """Model comparison: BIC, look-elsewhere-calibrated thresholds, held-out prediction.
 
 All quantities work on *whitened* residuals and Jacobians (divided by the noise and
-AR(1)-whitened, see :mod:`curltrack.discover.noise`), so chi-square is ``sum(r**2)``.
+AR(1)-whitened, see :mod:`curltrack.series.noise`), so chi-square is ``sum(r**2)``.
 
 Look-elsewhere calibration
 --------------------------
@@ -27,11 +27,6 @@ import numpy as np
 CANDIDATE_LEVEL = 0.01
 N_BOOT = 500
 BLOCK_FRAMES = 10
-
-
-def bic(chi2: float, k: int, n: int) -> float:
-    """Bayesian information criterion with the noise known: ``chi2 + k ln n``."""
-    return float(chi2 + k * np.log(n))
 
 
 def orth_basis(a, rel_tol: float = 1e-6):

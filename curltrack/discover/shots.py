@@ -8,8 +8,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SeriesError
-from ..series import Series
-from .noise import Noise, estimate_noise
+from ..rig import default_rig
+from ..series import Series, series_stops
+from ..series.noise import Noise, row_sigma
 
 COORDS = ("x", "y", "theta")
 #: rows kept after a stop (s): they pin the stop and the final position
@@ -89,20 +90,10 @@ class ShotData:
                    if v)
 
 
-def _stop(series: Series, key: str, detected, warnings: list):
-    v = series.meta.get(key)
-    if v is not None:
-        return float(v)
-    if detected is None:
-        return None
-    val = getattr(detected, key)
-    warnings.append(f"{series.name}: no '{key}' in the sidecar; detected from the series "
-                    f"({'none' if val is None else f'{val:.3f} s'})")
-    return val
-
-
-def shot_from_series(series: Series) -> ShotData:
+def shot_from_series(series: Series, rig=None) -> ShotData:
     """Prepare one series for discovery.
+
+    ``rig`` supplies the rock's radii to the starting values (contract defaults).
 
     Raises
     ------
@@ -117,17 +108,10 @@ def shot_from_series(series: Series) -> ShotData:
     if len(d) < MIN_ROWS:
         raise SeriesError(f"too few measured rows with t >= 0 ({len(d)}; need {MIN_ROWS})",
                           path=name, where=f"rows 2-{len(series.data) + 1}")
-    warnings: list = []
     t = d["t"].to_numpy(float)
     frame = d["frame"].to_numpy(int)
     obs = {c: d[c].to_numpy(float) for c in COORDS}
-    detected = None
-    if series.meta.get("t_stop_translation") is None or series.meta.get("t_stop_rotation") is None:
-        from ..track.stops import detect_stops
-
-        detected = detect_stops(series.data, series.meta.get("fps"))
-    t_tr = _stop(series, "t_stop_translation", detected, warnings)
-    t_rot = _stop(series, "t_stop_rotation", detected, warnings)
+    t_tr, t_rot, warnings = series_stops(series)
     travel = float(np.nanmax(np.hypot(obs["x"] - obs["x"][0], obs["y"] - obs["y"][0])))
     has_theta = np.isfinite(obs["theta"])
     theta_measured = bool(series.theta_measured and has_theta.sum() >= MIN_ROWS)
@@ -153,17 +137,13 @@ def shot_from_series(series: Series) -> ShotData:
                 sigma[c] = np.ones(t.size)
                 continue
         rows = has_theta if c == "theta" else np.ones(t.size, bool)
-        noise[c] = estimate_noise(frame[rows], obs[c][rows], t=t[rows], t_stop=t_stop,
-                                  name=name, field=c, floor=1e-6 if c == "theta" else 1e-5)
         col = "sigma_theta" if c == "theta" else "sigma_xy"
-        s = np.full(t.size, noise[c].sigma)
-        if col in d.columns:
-            w = d[col].to_numpy(float)
-            good = np.isfinite(w) & (w > 0)
-            if good.sum() > 0.5 * w.size:
-                med = float(np.median(w[good]))
-                s = noise[c].sigma * np.where(good, np.clip(w / med, 0.5, 10.0), 1.0)
-        sigma[c] = s
+        noise[c], s_rows = row_sigma(
+            frame[rows], obs[c][rows], t=t[rows], t_stop=t_stop, name=name, field=c,
+            weights=d[col].to_numpy(float)[rows] if col in d.columns else None,
+            floor=1e-6 if c == "theta" else 1e-5)
+        sigma[c] = np.full(t.size, noise[c].sigma)
+        sigma[c][rows] = s_rows
     if not any(u.any() for u in use.values()):
         raise SeriesError("the rock neither moves nor turns measurably; nothing to model",
                           path=name)
@@ -174,7 +154,7 @@ def shot_from_series(series: Series) -> ShotData:
                     translates=translates, spins=spins, spin=spin,
                     theta_measured=theta_measured,
                     t_stop_translation=t_tr, t_stop_rotation=t_rot, warnings=warnings)
-    shot.start = _starting_values(series, shot)
+    shot.start = _starting_values(series, shot, rig or default_rig())
     if not theta_measured and translates:
         # the side of the spin from the data: the curl's (a_T < 0 in the fit's frame is
         # a counter-clockwise spin); a curl within 2 sigma of zero does not say
@@ -190,13 +170,14 @@ def shot_from_series(series: Series) -> ShotData:
     return shot
 
 
-def _starting_values(series: Series, shot: ShotData) -> dict:
+def _starting_values(series: Series, shot: ShotData, rig) -> dict:
     """Closed-form fit of the paper (``curltrack.fit``) as a starting point, with crude
     fallbacks when it fails (the discovery fit does not depend on it being good)."""
     from ..errors import CurltrackError
     from ..fit import fit_series
     from ..physics import closed_form as cf
 
+    R, r = rig.inertia_radius_m, rig.band_radius_m
     out = {"v0": 0.0, "omega0": 0.0, "phi_y": 0.0, "phi_theta": 0.0, "a_T": 0.0,
            "skew": 0.0, "alpha_y": 0.01, "alpha_theta": 0.01}
     t_tr = shot.t_stop_translation or float(shot.t[-1])
@@ -208,9 +189,9 @@ def _starting_values(series: Series, shot: ShotData) -> dict:
     if shot.spins:
         th_f = float(np.median(shot.obs["theta"][-5:]))
         out["omega0"] = 2.0 * th_f / t_rot
-        out["alpha_theta"] = cf.alpha_rotation(abs(out["omega0"]), 0.0, t_rot)
+        out["alpha_theta"] = cf.alpha_rotation(abs(out["omega0"]), 0.0, t_rot, R, r)
     try:
-        fitted = fit_series(series)
+        fitted = fit_series(series, rig)
     except CurltrackError:
         return out
     fr = fitted.values
@@ -222,7 +203,7 @@ def _starting_values(series: Series, shot: ShotData) -> dict:
     if out["phi_theta"] == 0.0 and lam_th is not None and np.isfinite(lam_th) and lam_th != 1:
         out["phi_theta"] = float(cf.phi_from_lambda(lam_th))
         out["alpha_theta"] = float(cf.alpha_rotation(abs(out["omega0"]), out["phi_theta"],
-                                                     fr.get("t_Ftheta") or t_rot))
+                                                     fr.get("t_Ftheta") or t_rot, R, r))
     if fr.get("a_T") is not None and np.isfinite(fr["a_T"]):
         out["a_T"] = abs(float(fr["a_T"]))
         out["a_T_signed"] = float(fr["a_T"])

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rig import G
+from ..rig import BAND_RADIUS_M, G, INERTIA_RADIUS_M
 
 #: |lambda - 2| below which the curl formula uses its Taylor expansion about lambda = 2.
 LAMBDA_DRY_EPS = 1e-4
@@ -104,7 +104,7 @@ def initial_rate(q_F, lam, t_F):
     return q_F * lam / t_F
 
 
-def alpha_rotation(omega0, phi, t_F, R=0.14, r=0.0625, g=G):
+def alpha_rotation(omega0, phi, t_F, R=INERTIA_RADIUS_M, r=BAND_RADIUS_M, g=G):
     """alpha = omega0^(1-phi) R^2 / (2 (1-phi) r^(1+phi) g t_Ftheta), (m/s)^(-phi)."""
     return omega0 ** (1.0 - phi) * R**2 / (2.0 * (1.0 - phi) * r ** (1.0 + phi) * g * t_F)
 
@@ -114,7 +114,7 @@ def alpha_translation(v0, phi, t_F, g=G):
     return v0 ** (1.0 - phi) / ((1.0 - phi) * g * t_F)
 
 
-def stop_time_rotation(omega0, phi, alpha, R=0.14, r=0.0625, g=G):
+def stop_time_rotation(omega0, phi, alpha, R=INERTIA_RADIUS_M, r=BAND_RADIUS_M, g=G):
     """t_Ftheta = omega0^(1-phi) R^2 / (2 (1-phi) r^(1+phi) alpha g)  (s)."""
     return omega0 ** (1.0 - phi) * R**2 / (2.0 * (1.0 - phi) * r ** (1.0 + phi) * alpha * g)
 
@@ -124,12 +124,12 @@ def stop_time_translation(v0, phi, alpha, g=G):
     return v0 ** (1.0 - phi) / ((1.0 - phi) * alpha * g)
 
 
-def c_omega(lambda_theta, lambda_y, R=0.14, r=0.0625):
+def c_omega(lambda_theta, lambda_y, R=INERTIA_RADIUS_M, r=BAND_RADIUS_M):
     """C_omega = (lambda_theta - 1)/(lambda_y - 1) (R/r)^2 (draw shots)."""
     return (lambda_theta - 1.0) / (lambda_y - 1.0) * (R / r) ** 2
 
 
-def c_y(lambda_theta, lambda_y, R=0.14, r=0.0625):
+def c_y(lambda_theta, lambda_y, R=INERTIA_RADIUS_M, r=BAND_RADIUS_M):
     """C_y = 4 (r/R)^2 (lambda_y - 1)/(lambda_theta - 1) (RRSS shots); C_omega C_y = 4."""
     return 4.0 * (r / R) ** 2 * (lambda_y - 1.0) / (lambda_theta - 1.0)
 

@@ -58,10 +58,10 @@ def solve(model: ShotModel, effects=(), horizon: float | None = None, method: st
     if method not in ("auto", "ode", "closed"):
         raise ParameterError(f"unknown method {method!r}; expected auto, ode or closed",
                              where="method")
-    if method == "closed" and terms.slope_accel != (0.0, 0.0):
-        raise ParameterError("a constant acceleration (ice_slope) needs method 'ode'",
-                             where="method")
-    use_ode = method == "ode" or terms.slope_accel != (0.0, 0.0)
+    if method == "closed" and terms.needs_ode:
+        raise ParameterError("a constant acceleration (ice_slope) or an extension "
+                             "multiplier needs method 'ode'", where="method")
+    use_ode = method == "ode" or terms.needs_ode
     horizon = MAX_DURATION_S if horizon is None else float(horizon)
     segments = (_ode_segments(model, terms, horizon) if use_ode
                 else _closed_segments(model, terms, horizon))

@@ -97,7 +97,13 @@ def _vdf_finish(params, errs, values, err, loc):
     ch = "y" if "phi_y" in params else "theta"
     for key, src in (("phi", f"phi_{ch}"), ("alpha", f"alpha_{ch}"),
                      ("alpha_y", "alpha_y"), ("alpha_theta", "alpha_theta")):
-        if src in values:
+        per_shot = sorted((k for k in values if k.startswith(f"{src}[")),
+                          key=lambda k: int(k[k.index("[") + 1:-1]))
+        if per_shot:  # a session: alpha per shot; the median shot's stands for it
+            i = per_shot[int(np.argsort([values[k] for k in per_shot])[len(per_shot) // 2])]
+            params[key], errs[key] = values[i], err(i)
+            params[f"{key}_per_shot"] = [values[k] for k in per_shot]
+        elif src in values:
             params[key] = values[src]
             errs[key] = err(src)
     return params, errs
@@ -303,3 +309,8 @@ register(EffectDef(
                                  p["domega_rad_per_s"])},
     check=lambda p: f"t_s must be >= 0 (got {p['t_s']})" if p["t_s"] < 0.0 else None,
     candidate=_pick_candidate, **at_a_time_in_one_shot("pick", _PICK_KEYS)))
+
+
+# the data-driven extensions (discover's library beyond the named effects) register
+# themselves after the five named effects, so discovery tries them last
+from . import extensions  # noqa: E402,F401

@@ -20,41 +20,11 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..errors import ParameterError
-from .terms import Terms
-
-_REQUIRED = object()
-
-
-@dataclass(frozen=True)
-class Param:
-    """One parameter of an effect (or one a discovery candidate fits).
-
-    Attributes
-    ----------
-    name : str
-        Contract name (units in the name where it has some).
-    default : float, None or REQUIRED
-        Value when not given; :data:`REQUIRED` if it must be given, None if optional.
-    unit : str
-        For messages and reports.
-    null : float
-        Value at which the effect vanishes (size parameters; the fit starts there).
-    lower, upper : float or None
-        Bounds in discovery's fits.
-    step : float or None
-        Finite-difference step of discovery's Jacobian (None: relative 1e-4).
-    """
-
-    name: str
-    default: object = None
-    unit: str = ""
-    null: float = 0.0
-    lower: float | None = None
-    upper: float | None = None
-    step: float | None = None
+from .params import REQUIRED, Param
+from .terms import EXTENSION_KINDS, Extension, Terms
 
 
-REQUIRED = _REQUIRED
+
 
 
 @dataclass
@@ -92,6 +62,12 @@ class Candidate:
     note: str = ""
     subsets: list | None = None
     effect: "EffectDef | None" = None
+    #: a data-driven extension (``discover.extend``), not a named effect
+    extension: bool = False
+    #: false-alarm level of its bootstrap threshold (None: discover's default)
+    level: float | None = None
+    #: nonlinear fits started from this many scan locations (None: discover's default)
+    n_starts: int | None = None
 
     @property
     def params(self) -> list:
@@ -206,7 +182,7 @@ def effect_parameters(name: str) -> dict[str, object]:
     if name not in EFFECTS:
         raise ParameterError(f"unknown effect {name!r}; expected one of {sorted(EFFECTS)}",
                              where="effect")
-    return {p.name: ("required" if p.default is _REQUIRED else p.default)
+    return {p.name: ("required" if p.default is REQUIRED else p.default)
             for p in EFFECTS[name].params}
 
 
@@ -294,7 +270,7 @@ def gather(effects) -> Terms:
     """
     effects = as_effects(effects)
     ax = ay = 0.0
-    patches, picks, overrides, gain = [], [], {}, None
+    patches, picks, overrides, gain, ext = [], [], {}, None, {}
     seen = set()
     for e in effects:
         defn = EFFECTS[e.name]
@@ -316,10 +292,15 @@ def gather(effects) -> Terms:
                 picks.append(value)
             elif kind == "friction_law":
                 overrides.update(value)
+            elif kind in EXTENSION_KINDS:
+                if kind in ext:
+                    raise ParameterError(f"a second {kind} term", where=f"effect {e.name}")
+                ext[kind] = value
             else:
                 raise ParameterError(f"unknown term kind {kind!r}", where=f"effect {e.name}")
     picks.sort(key=lambda q: q[0])
-    return Terms((ax, ay), tuple(patches), gain, tuple(picks), overrides)
+    return Terms((ax, ay), tuple(patches), gain, tuple(picks), overrides,
+                 Extension.from_terms(ext))
 
 
 # ---------------------------------------------------------------------------------------

@@ -55,7 +55,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from ..errors import ParameterError
-from ..rig import G
+from ..rig import BAND_RADIUS_M, G, INERTIA_RADIUS_M
 from .shot import ALPHA_Y_DRAW, PHI_Y_DRAW, Trajectory, _ModelParams
 
 U_EPS = 1e-4      # m/s, friction regularisation
@@ -93,8 +93,8 @@ class SegmentModel(_ModelParams):
     friction_direction: str = "film"
     film_drag: float = KAPPA_DRAW
     asymmetry: float = 0.0
-    R: float = 0.14
-    r: float = 0.0625
+    R: float = INERTIA_RADIUS_M
+    r: float = BAND_RADIUS_M
     n_segments: int = 64
 
     def __post_init__(self):

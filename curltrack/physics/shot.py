@@ -33,6 +33,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..errors import ParameterError
+from ..rig import BAND_RADIUS_M, INERTIA_RADIUS_M
 from . import closed_form as cf
 
 #: The paper's pebbled-ice draw (their Fig. 5): phi_y = -0.19, alpha_y = 0.0076.
@@ -109,8 +110,8 @@ class ShotModel(_ModelParams):
     phi_theta: float = PHI_THETA_DRAW
     alpha_theta: float | None = None
     a_T: float = A_T_DRAW
-    R: float = 0.14
-    r: float = 0.0625
+    R: float = INERTIA_RADIUS_M
+    r: float = BAND_RADIUS_M
     v_taper: float = V_TAPER
 
     def __post_init__(self):
@@ -215,10 +216,3 @@ class Trajectory:
     @property
     def speed(self) -> np.ndarray:
         return np.hypot(self.vx, self.vy)
-
-    def to_frame(self):
-        """A pandas DataFrame with columns t, x, y, vx, vy, theta, omega."""
-        import pandas as pd
-
-        return pd.DataFrame({k: getattr(self, k) for k in
-                             ("t", "x", "y", "vx", "vy", "theta", "omega")})

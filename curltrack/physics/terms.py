@@ -17,6 +17,23 @@ effect names; an effect (:mod:`curltrack.physics.effects`) says which of them it
 ``friction_law``
     ``{ShotModel field: value}``: replaces the model's friction law (phi_y, alpha_y,
     phi_theta, alpha_theta).
+
+Smooth multipliers of the data-driven extensions (``discover``'s library beyond the
+named effects; definitions in :mod:`curltrack.physics.extensions`), integrated by the
+ODE path, each at most once, gathered into :class:`Extension`:
+
+``friction_field``
+    ``(k, a, b)``: both friction coefficients multiplied by 1 + a cos(k y) + b sin(k y)
+    (k = 2 pi / wavelength, 1/m).
+``spin_coupling``
+    ``c`` (s/m): the rotational friction multiplied by 1 + c v.
+``translation_coupling``
+    ``c`` (s/rad): the translational friction multiplied by 1 + c |omega|.
+``curl_spin``
+    ``(p, omega_ref, omega_min)``: a_T multiplied by ((omega^2 + omega_min^2) /
+    omega_ref^2)^(p/2).
+
+Every multiplier is clipped at :data:`MIN_FACTOR`, so friction never changes sign.
 """
 
 from __future__ import annotations
@@ -28,8 +45,13 @@ import numpy as np
 
 from ..rig import G
 
-#: the term kinds, in the order :class:`Terms` holds them
-KINDS = ("accel", "patch", "transverse_gain", "impulse", "friction_law")
+#: the term kinds, in the order :class:`Terms` holds them (the last four: its extension)
+KINDS = ("accel", "patch", "transverse_gain", "impulse", "friction_law",
+         "friction_field", "spin_coupling", "translation_coupling", "curl_spin")
+EXTENSION_KINDS = KINDS[5:]
+#: multipliers of friction never fall below this (a fitted coefficient far off the data
+#: must not make friction push the rock)
+MIN_FACTOR = 0.05
 
 
 class Terms(NamedTuple):
@@ -40,6 +62,56 @@ class Terms(NamedTuple):
     late_curl: tuple[float, float, float] | None   # (k, v_ref, v_min) of the transverse gain
     picks: tuple[tuple[float, float, float, float], ...]  # (t, dvx, dvy, domega), sorted
     overrides: dict                         # ShotModel field -> value
+    extension: "Extension | None" = None    # smooth multipliers (ODE path)
+
+    @property
+    def needs_ode(self) -> bool:
+        """Slopes and extension multipliers couple speed, spin and position."""
+        return self.slope_accel != (0.0, 0.0) or self.extension is not None
+
+
+class Extension(NamedTuple):
+    """The extension multipliers of one shot (None/0 when absent)."""
+
+    field: tuple[float, float, float] | None = None    # (k = 2 pi / wavelength, a, b)
+    spin_c: float = 0.0                                # s/m
+    trans_c: float = 0.0                               # s/rad
+    curl: tuple[float, float, float] | None = None     # (p, omega_ref, omega_min)
+
+    @classmethod
+    def from_terms(cls, kinds: dict) -> "Extension | None":
+        """From ``{kind: value}`` of :data:`EXTENSION_KINDS` (None when empty)."""
+        if not kinds:
+            return None
+        return cls(field=kinds.get("friction_field"), spin_c=kinds.get("spin_coupling", 0.0),
+                   trans_c=kinds.get("translation_coupling", 0.0), curl=kinds.get("curl_spin"))
+
+    def _field(self, y: float) -> float:
+        if self.field is None:
+            return 1.0
+        k, a, b = self.field
+        return max(1.0 + a * math.cos(k * y) + b * math.sin(k * y), MIN_FACTOR)
+
+    def friction(self, y: float, omega_abs: float) -> float:
+        """Multiplier of the translational friction at position ``y`` and spin |omega|."""
+        f = self._field(y)
+        if self.trans_c:
+            f *= max(1.0 + self.trans_c * omega_abs, MIN_FACTOR)
+        return f
+
+    def spin_friction(self, y: float, v: float) -> float:
+        """Multiplier of the rotational friction at position ``y`` and speed ``v``."""
+        f = self._field(y)
+        if self.spin_c:
+            f *= max(1.0 + self.spin_c * v, MIN_FACTOR)
+        return f
+
+    def curl_gain(self, omega_abs: float) -> float:
+        """Multiplier of a_T at spin |omega| (rad/s)."""
+        if self.curl is None:
+            return 1.0
+        p, w_ref, w_min = self.curl
+        return ((omega_abs * omega_abs + w_min * w_min) / (w_ref * w_ref)) ** (0.5 * p)
 
 
 def slope_acceleration(slope_mm_per_m: float, g: float = G) -> float:

@@ -60,12 +60,14 @@ class Compositor:
         does; otherwise add slightly blurred noise to each channel.
     readout_s : float
         Rolling shutter readout time (s), 0 = global shutter (see :mod:`~.sensor`).
+    shadow : callable, optional
+        ``(t, XY (N, 2) world m) -> transmitted fraction (N,)``: a shadow on the ice.
     """
 
     def __init__(self, camera: Camera, vignetting: float, read_noise: float,
                  shot_noise_gain: float, jpeg_quality: int | None, rng: np.random.Generator,
                  glare=None, flicker: float = 0.0, demosaic: bool = False,
-                 readout_s: float = 0.0):
+                 readout_s: float = 0.0, shadow=None):
         self.cam = camera
         W, H = camera.width, camera.height
         uu, vv = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
@@ -101,6 +103,7 @@ class Compositor:
         self._flicker_phase = rng.uniform(0, 2 * np.pi)
         self._frame_seed = int(rng.integers(2**63))
         self.readout_s = float(readout_s)
+        self.shadow = shadow
         n_knots = int(np.ceil(self.readout_s / 0.002)) + 1 if self.readout_s > 0 else 2
         self._knots = np.linspace(-0.5, 0.5, n_knots) * self.readout_s
         self._gains, self._compress = None, True
@@ -260,10 +263,13 @@ class Compositor:
             return cv2.warpPerspective(tex.image, self.ice_homography(cam, tex),
                                        self.canvas_size, flags=cv2.INTER_LINEAR,
                                        borderMode=cv2.BORDER_REFLECT)
-        w, h = self.canvas_size
+        return self._ice_rolling(t, (0, 0), self.canvas_size, cam_at, tex)
+
+    def _ice_rolling(self, t, origin, box, cam_at, tex: Texture) -> np.ndarray:
+        """The ice in the canvas block ``box`` (w, h) at ``origin``, rows at their times."""
         mx, my = self._coarse_maps(
             lambda X, Y: self._rolling_map(t, X, Y, lambda c, _: self.ice_homography(c, tex),
-                                           cam_at, lambda _: None), 0, 0, w, h)
+                                           cam_at, lambda _: None), *origin, *box)
         return cv2.remap(tex.image, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
 
     def _row_offset(self, X, Y) -> np.ndarray:
@@ -318,22 +324,16 @@ class Compositor:
 
     def _box_rolling(self, t, origin, box, cam_at, layers_at, tex) -> np.ndarray:
         """The box around the rock at sub-frame ``t``, each row at its own time."""
-        x0, y0 = origin
-        w, h = box
-        mx, my = self._coarse_maps(
-            lambda X, Y: self._rolling_map(t, X, Y, lambda c, _: self.ice_homography(c, tex),
-                                           cam_at, lambda _: None), x0, y0, w, h)
-        comp = cv2.remap(tex.image, mx, my, cv2.INTER_LINEAR,
-                         borderMode=cv2.BORDER_REFLECT).astype(np.float32)
-        for j, (sprite, _) in enumerate(layers_at(t)):
-            def pose(tk, j=j, sprite=sprite):
-                layers = layers_at(tk)
-                found = [p for s, p in layers if s is sprite]
-                return found[0] if found else dict(layers_at(t))[sprite]
+        comp = self._ice_rolling(t, origin, box, cam_at, tex).astype(np.float32)
+        for sprite, pose_t in layers_at(t):
+            def pose(tk, sprite=sprite, pose_t=pose_t):
+                # (a layer that leaves at a knot, the broom far off, keeps its pose at t)
+                found = [p for s, p in layers_at(tk) if s is sprite]
+                return found[0] if found else pose_t
             mx, my = self._coarse_maps(
                 lambda X, Y: self._rolling_map(
                     t, X, Y, lambda c, p: self.sprite_homography(c, sprite, p), cam_at, pose),
-                x0, y0, w, h)
+                *origin, *box)
             warped = cv2.remap(sprite.rgba, mx, my, cv2.INTER_LINEAR,
                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)
             comp *= 1.0 - warped[..., 3:4]
@@ -368,6 +368,22 @@ class Compositor:
         g = cv2.resize(g, (len(cu) * 8, len(cv) * 8), interpolation=cv2.INTER_LINEAR)
         return np.repeat(g[:H, :W, None], 3, axis=2)
 
+    def _shadow_image(self, cam: Camera, t: float) -> np.ndarray:
+        """Transmitted light (H, W, 3) under a person's soft shadow on the ice at ``t``:
+        ``1 - depth * s`` with ``s`` the shadow's profile on the ice plane (see
+        :meth:`~.production.Production.shadow_at`), seen through ``cam``."""
+        W, H = cam.width, cam.height
+        n = 4  # a grid n px coarse (the penumbra is smooth), resized: sample k at n k + 1.5
+        cu = np.arange((W + n - 1) // n) * n + (n - 1) / 2
+        cv = np.arange((H + n - 1) // n) * n + (n - 1) / 2
+        uv = np.stack(np.meshgrid(cu, cv), -1).reshape(-1, 2)
+        pu = cam.to_pixels(cam.undistort(cam.to_normalized(uv)))
+        q = np.c_[pu, np.ones(len(pu))] @ np.linalg.inv(cam.plane_homography(0.0)).T
+        XY = q[:, :2] / q[:, 2:]
+        s = self.shadow(t, XY).reshape(len(cv), len(cu)).astype(np.float32)
+        s = cv2.resize(s, (len(cu) * n, len(cv) * n), interpolation=cv2.INTER_LINEAR)
+        return np.repeat(s[:H, :W, None], 3, axis=2)
+
     @staticmethod
     def _mosaic(img: np.ndarray) -> np.ndarray:
         """The photosite values of a Bayer sensor: B G / G R in each 2x2 cell."""
@@ -381,6 +397,8 @@ class Compositor:
     def _finish(self) -> np.ndarray:
         """Glare, distort, vignette and flicker, noise; the final BGR uint8 frame."""
         img = cv2.remap(self.acc, self.map1, self.map2, cv2.INTER_LINEAR)
+        if self.shadow is not None:
+            cv2.multiply(img, self._shadow_image(self._cam_mid, self._t_mid), dst=img)
         glare = self._glare_image(self._cam_mid) if self.glare is not None else None
         if glare is not None:
             cv2.add(img, glare, dst=img)

@@ -50,7 +50,8 @@ class RenderConfig:
         default 0.6.
     glare : float
         Peak brightness (0-255 levels) of the lamps' diffuse reflections in the ice,
-        which slide against the lattice as the camera moves; default 10; 0 = off.
+        which slide against the lattice as the camera moves; default 10; 0 = off.  A
+        specular glare: 80-200 with ``glare_spread_rad`` 0.03-0.06.
     lamp_height_m, glare_spread_rad : float
         Height of the lamps above the ice (m), default 6; angular spread of their
         reflection by the pebbled surface (rad), default 0.12.
@@ -66,6 +67,11 @@ class RenderConfig:
         When the broom passes over the rock (s); default 40 % of the motion.
     occlusion_speed_m_s : float
         Broom speed across the view (m/s), default 1.2.
+    shadow : float
+        Depth of a person's soft shadow walking beside the rock (fraction of the light
+        it takes, 0-0.9), default 0 = none.
+    shadow_size_m : float
+        Length of that shadow on the ice (m), default 0.9 (its width is half of it).
     stopped_tail_s : float
         The video ends at least this long after the rock's last stop (s), default 1.0;
         frames are appended when the series' own rest is shorter (only when it stopped).
@@ -103,6 +109,8 @@ class RenderConfig:
     occlusion: bool = False
     occlusion_t_s: float | None = None
     occlusion_speed_m_s: float = 1.2
+    shadow: float = 0.0
+    shadow_size_m: float = 0.9
     stopped_tail_s: float = 1.0
     marker_diameter_m: float = 0.025
     ice: IceStyle = field(default_factory=IceStyle)
@@ -141,6 +149,8 @@ class RenderConfig:
             bad("optics_blur_px", "optics_blur_px must be 0..5 px and flicker 0..0.5")
         if not (1.0 <= self.lamp_height_m <= 50 and 0.01 <= self.glare_spread_rad <= 1):
             bad("lamp_height_m", "lamp_height_m must be 1..50 m, glare_spread_rad 0.01..1")
+        if not (0 <= self.shadow <= 0.9 and 0.1 <= self.shadow_size_m <= 5):
+            bad("shadow", "shadow must be in [0, 0.9] and shadow_size_m in [0.1, 5] m")
         if self.occlusion_speed_m_s <= 0:
             bad("occlusion_speed_m_s", "must be > 0")
         self.encoding.validate()

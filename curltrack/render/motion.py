@@ -4,7 +4,9 @@
 in the paper: fixed orientation, follows the rock with a lag whose time constant varies
 (the attendant's changing pace), small wobble.  ``handheld``: held at shoulder height,
 more jitter, a slow yaw wander of a degree or two and a bobbing height.  ``static``: a
-fixed camera (the rock may leave the view).
+fixed camera (the rock may leave the view).  ``pole``: on a pole carried by a walker,
+higher, with the pole's lightly damped sway (a resonance near 2-4 Hz whose amplitude
+beats as the walker's steps excite it).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import numpy as np
 from ..errors import ParameterError
 from .camera import LENSES, Camera, base_rotation, rotation_matrix
 
-MOTIONS = ("ladder", "handheld", "static")
+MOTIONS = ("ladder", "handheld", "static", "pole")
 
 # Per-motion defaults for the parameters left as None in CameraConfig.
 _DEFAULTS = {
@@ -24,6 +26,8 @@ _DEFAULTS = {
                    yaw_wander_deg=0.0, height_wander_m=0.002),
     "handheld": dict(height_m=1.6, lag_s=0.20, jitter_m=0.006, jitter_deg=0.25,
                      yaw_wander_deg=1.5, height_wander_m=0.03),
+    "pole": dict(height_m=3.0, lag_s=0.25, jitter_m=0.003, jitter_deg=0.1,
+                 yaw_wander_deg=1.0, height_wander_m=0.02, vibration_deg=0.5),
     "static": dict(height_m=2.0, lag_s=0.30, jitter_m=0.0, jitter_deg=0.0,
                    yaw_wander_deg=0.0, height_wander_m=0.0),
 }
@@ -75,6 +79,10 @@ class CameraConfig:
         RMS of the slow (0.05-0.4 Hz) yaw wander (deg): ladder 0, handheld 1.5.
     height_wander_m : float, optional
         RMS of the slow height change (m): ladder 0.002, handheld 0.03.
+    vibration_deg : float, optional
+        RMS of the pole's resonant sway (deg): pole 0.5, others 0.
+    vibration_hz : float
+        Resonance of that sway (Hz), default 3.
     offset_m : (float, float)
         Where the camera aims relative to the rock, in the world frame (m), default 0.
     """
@@ -98,6 +106,8 @@ class CameraConfig:
     yaw_wander_deg: float | None = None
     height_wander_m: float | None = None
     offset_m: tuple[float, float] = (0.0, 0.0)
+    vibration_deg: float | None = None
+    vibration_hz: float = 3.0
 
     def resolved(self) -> "CameraConfig":
         """A copy with the motion-dependent ``None`` fields filled in, validated."""
@@ -108,7 +118,7 @@ class CameraConfig:
             raise ParameterError(f"unknown lens {self.lens!r}; expected one of "
                                  f"{list(LENSES)}", where="camera.lens")
         d = asdict(self)
-        for key, val in _DEFAULTS[self.motion].items():
+        for key, val in {"vibration_deg": 0.0, **_DEFAULTS[self.motion]}.items():
             if d[key] is None:
                 d[key] = val
         out = CameraConfig(**d)
@@ -117,7 +127,8 @@ class CameraConfig:
                   ("jitter_m", 0.0, 0.1), ("jitter_deg", 0.0, 5.0),
                   ("yaw_wander_deg", 0.0, 20.0), ("height_wander_m", 0.0, 0.3),
                   ("k1", -0.5, 0.5), ("k2", -0.5, 0.5), ("yaw_offset_max_deg", 0.0, 45.0),
-                  ("pixel_aspect", 0.5, 2.0)]
+                  ("pixel_aspect", 0.5, 2.0), ("vibration_deg", 0.0, 5.0),
+                  ("vibration_hz", 0.5, 20.0)]
         for key, lo, hi in checks:
             v = getattr(out, key)
             if not np.isfinite(v) or not lo <= v <= hi:
@@ -186,6 +197,10 @@ class CameraPath:
         self._dz = _wander(rng, cfg.height_wander_m, 0.1, 0.8, 4)
         self._pace = _wander(rng, cfg.speed_variation / np.sqrt(2), 0.1, 0.6, 4)
         self._follow(rock_xy, t0, t1)
+        if cfg.vibration_deg > 0:  # a narrow band around the resonance: a beating sway
+            f0, vr = cfg.vibration_hz, np.deg2rad(cfg.vibration_deg)
+            self._jit_ang = [lambda t, a=f, b=_wander(rng, vr, 0.93 * f0, 1.07 * f0, 6):
+                             a(t) + b(t) for f in self._jit_ang]
 
     def _follow(self, rock_xy, t0, t1):
         """Integrate the follower dC/dt = (target - C) / tau(t) on a fine time grid."""

@@ -115,6 +115,7 @@ class Production:
         self.tex_z_m = -rig.grid_depth_m / N_ICE
         self.t_occ = (cfg.occlusion_t_s if cfg.occlusion_t_s is not None
                       else 0.4 * traj.t_motion_end)
+        self._shadow_side = rng_cam.choice([-1.0, 1.0]) if cfg.shadow > 0 else 0.0
         self._drawn = None
         nsub = int(cfg.blur_subframes)
         self.offsets = ((np.arange(nsub) + 0.5) / nsub - 0.5) * cfg.shutter * self.exp.period
@@ -157,12 +158,30 @@ class Production:
             glare = (lamps, cfg.glare, cfg.glare_spread_rad)
         self.comp = Compositor(self.cams[0], cfg.vignetting, cfg.read_noise,
                                cfg.shot_noise_gain, cfg.jpeg_quality, rng, glare, cfg.flicker,
-                               cfg.demosaic, self.sensor.readout_s)
+                               cfg.demosaic, self.sensor.readout_s,
+                               self.shadow_at if cfg.shadow > 0 else None)
         self._drawn = True
 
     @property
     def n_frames(self) -> int:
         return len(self.t_frames)
+
+    def shadow_at(self, t: float, XY) -> np.ndarray:
+        """Light transmitted at world points ``XY`` (N, 2) under the walking person's
+        shadow at time ``t`` (1 = none): an ellipse (``shadow_size_m`` by half of it)
+        beside the rock's path, drifting over it and back (a sweeper's pace), with a
+        soft penumbra (a high lamp: edges spread over ~15 % of its size)."""
+        tr = self.traj
+        P = tr.rock_xy(np.array([t]))[0]
+        a, L = tr.travel_yaw, self.cfg.shadow_size_m
+        along = np.array([np.cos(a), np.sin(a)])
+        across = np.array([-along[1], along[0]])
+        # over the rock and off it with a ~3 s period: the shadow crosses the markers
+        off = self._shadow_side * L * (0.35 + 0.35 * np.sin(2 * np.pi * t / 3.0))
+        d = np.asarray(XY, dtype=float) - (P + across * off + along * 0.1 * L)
+        r = np.hypot((d @ along) / (0.5 * L), (d @ across) / (0.25 * L))
+        prof = 0.5 * (1 - np.tanh((r - 1.0) / 0.15))
+        return 1.0 - self.cfg.shadow * prof
 
     def broom_pose(self, t: float) -> np.ndarray:
         """World pose of the broom head: crossing the travel line over the rock at t_occ."""
@@ -239,6 +258,9 @@ class Production:
         if sen.readout_s > 0:
             drawn = np.array([self.drawn_px(e) for e in range(len(exp.t))])
             data["u_drawn_px"], data["v_drawn_px"] = drawn[:, 0], drawn[:, 1]
+        if self.cfg.shadow > 0:
+            centre = self.traj.rock_xy(exp.t)
+            data["shadow"] = [1.0 - self.shadow_at(t, c[None])[0] for t, c in zip(exp.t, centre)]
         if self.colour.on:
             g = self.colour.gains(exp.t)
             data["gain_b"], data["gain_g"], data["gain_r"] = g[:, 0], g[:, 1], g[:, 2]

@@ -67,6 +67,12 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
         Bad settings, or the rock outside the view for the whole shot.
     VideoError
         The video cannot be written.
+
+    Examples
+    --------
+    >>> from curltrack import ShotModel, default_rig, render, simulate_series
+    >>> truth = render(simulate_series(ShotModel(v0=1.5, omega0=1.5)), default_rig(),
+    ...                "shot.mp4", truth_path="truth.csv", seed=7)  # doctest: +SKIP
     """
     prod = Production(series, rig, config or RenderConfig(), seed)
     video_path = Path(video_path)
@@ -91,7 +97,7 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
     truth = prod.truth()
     if truth_path is not None:
         write_series(truth_path, truth)
-        truth.path = Path(truth_path)
+        truth = replace(truth, path=Path(truth_path))
     stem = video_path.with_suffix("")
     # no [camera].fps: time comes from the container (a rig's fps that disagrees with
     # a re-encoded copy of the video would be an error, not a silent override)

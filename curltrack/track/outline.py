@@ -45,8 +45,6 @@ MIN_OUTLINE_DISCREPANCY = 0.03
 #: Highest plausible camera (m): markers that look less than h/MAX_CAMERA_HEIGHT_M larger
 #: than their layout contradict the grid's scale.
 MAX_CAMERA_HEIGHT_M = 8.0
-#: Lowest plausible camera (m) (doctor's plausible range starts here too).
-MIN_CAMERA_HEIGHT_M = 0.8
 
 
 def _profiles(image, H_inv, K, dist, centre, radius, n_dir):
@@ -188,18 +186,11 @@ def scale_check(layout_scale, outline_scale, rig, h_eff: float, depth_eff: float
     lim = max(N_SIGMA * np.hypot(e_o, dpred_ds * e_m), MIN_OUTLINE_DISCREPANCY)
     if abs(D) <= lim:
         return ""
-    # the outline alone allows f = 1 for some plausible camera height: the markers'
-    # layout (or the rock's height) is the likelier mistake
-    lo = 1.0 + z / (MAX_CAMERA_HEIGHT_M + depth_eff) - MIN_OUTLINE_DISCREPANCY
-    hi = 1.0 + z / (MIN_CAMERA_HEIGHT_M - z) + MIN_OUTLINE_DISCREPANCY
-    if lo <= s_o <= hi:
-        likely = ("the rock's outline agrees with the grid, so the [[markers]] positions "
-                  "(or [rock].height_m) are likely wrong")
-        what = "check the [[markers]] positions (metres from the rock's axis)"
-    else:
-        f = _solve_f(s_m, s_o, h_eff, z)
-        likely = (f"the grid spacing is likely {(f - 1) * 100:+.0f} % off"
-                  if np.isfinite(f) else "the grid spacing is likely off")
+    # (which ruler is wrong cannot be told without the camera height: both named)
+    f = _solve_f(s_m, s_o, h_eff, z)
+    likely = ((f"the grid spacing is likely {(f - 1) * 100:+.0f} % off" if np.isfinite(f)
+               else "the grid spacing is likely off")
+              + " (or the [[markers]] positions are wrong)")
     return (f"{head} the rock's outline measures {s_o * rig.rock_diameter_m:.3f} m across "
             f"where the markers' parallax (camera {Hm:.2f} m up) predicts "
             f"{pred * rig.rock_diameter_m:.3f} m ({D * 100:+.1f} %, expected 0 within "

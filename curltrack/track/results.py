@@ -13,9 +13,13 @@ from .outline import scale_check
 from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, correct_parallax,
                        estimate_height, focal_for_height, layout_scale_mismatch)
 from .shotframe import to_shot_frame
-from .stops import detect_stops
+from ..series.stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
+
+#: Largest 1 sigma (m) of an origin extrapolated back to t = 0 that a series may carry
+#: (in sigma_xy); beyond it every position would be uncertain by more: an error.
+MAX_ORIGIN_SIGMA_M = 0.010
 
 #: Frames whose layout scale is this many robust sigmas off the video's are rejected.
 SCALE_OUTLIER_SIGMA = 6.0
@@ -40,6 +44,27 @@ TURN_WARN_DEG_PER_FRAME = 1.0
 #: std of error/sigma is then 0.66-1.15 per set-up (was 1.30-2.44).
 SIGMA_STAT_SCALE = 1.40
 SIGMA_MISFIT_SCALE = 0.32
+
+
+def field_offset(t, q, field, ok) -> np.ndarray:
+    """Median offset of field 1's values from field 0's at the same time (per column).
+
+    Each measured field-1 row is compared with field 0 interpolated linearly to its time
+    (rows of both fields within one frame period).  A smooth motion measured right has
+    no offset; NaN-free zeros when there are too few pairs.
+    """
+    out = np.zeros(q.shape[1])
+    a, b = ok & (field == 0), ok & (field == 1)
+    if a.sum() < 4 or b.sum() < 4:
+        return out
+    ta, tb = t[a], t[b]
+    inside = (tb > ta.min()) & (tb < ta.max())
+    if inside.sum() < 4:
+        return out
+    for j in range(q.shape[1]):
+        d = q[b, j][inside] - np.interp(tb[inside], ta, q[a, j])
+        out[j] = float(np.median(d)) if np.isfinite(d).all() else 0.0
+    return out
 
 
 def frame_ranges(frames) -> str:
@@ -211,7 +236,30 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
     sigma_xy = est.k * np.hypot(SIGMA_STAT_SCALE * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
                                 SIGMA_MISFIT_SCALE * sig_r)
+    if shot["origin_sigma_m"] > MAX_ORIGIN_SIGMA_M:
+        raise TrackingError(f"the first measured frame is at t = {t[ok][0]:.2f} s and the "
+                            "origin (the rock at t = 0) cannot be extrapolated back to it "
+                            f"better than ~{1e3 * shot['origin_sigma_m']:.0f} mm: give "
+                            "--start-frame at a frame where the rock and the grid are "
+                            "seen", path=path, where=f"frames 0-{frame[ok][0]}")
+    sigma_xy = np.hypot(sigma_xy, shot["origin_sigma_m"])
+    if shot["origin_sigma_m"] > 1e-3:
+        warnings.append(f"{path}: the first measured frame is at t = {t[ok][0]:.2f} s: the "
+                        "origin (the rock at t = 0) is extrapolated back to it, uncertain by "
+                        f"~{1e3 * shot['origin_sigma_m']:.0f} mm (included in sigma_xy)")
     sigma_theta = sig_m / max(lever, 1e-6)
+    if any(r.field is not None for r in records):
+        # the two fields disagree systematically (mis-registration, aliasing, chroma):
+        # half their offset is an error of every row that the pixel noise does not show
+        fld = np.array([r.field if r.field is not None else -1 for r in records])
+        off = field_offset(t, np.column_stack([shot["x"], shot["y"], shot["theta"]]), fld, ok)
+        sigma_xy = np.hypot(sigma_xy, 0.5 * np.hypot(off[0], off[1]) / np.sqrt(2))
+        sigma_theta = np.hypot(sigma_theta, 0.5 * off[2])
+        if np.hypot(off[0], off[1]) > 2e-3 or abs(off[2]) > np.radians(0.5):
+            warnings.append(
+                f"{path}: the two fields disagree by {1e3 * off[0]:+.1f}, {1e3 * off[1]:+.1f} mm"
+                f" and {np.degrees(off[2]):+.2f} deg (field 1 - field 0, over the shot): "
+                "included in sigma_xy / sigma_theta")
     med = np.median(scale[ok])
     spread = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
     contrast = np.array([r.contrast for r in records])
@@ -239,6 +287,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                         f"{n_fast} frame(s) above {TURN_WARN_DEG_PER_FRAME:g}): positions "
                         "lose accuracy and the grid can be lost; turn the camera more "
                         "slowly")
+    if abs(getattr(info, "pixel_aspect", 1.0) - 1.0) > 1e-3:
+        warnings.append(f"{path}: the video's pixels are not square (aspect "
+                        f"{info.pixel_aspect:.4g}); the lens and parallax models assume square "
+                        "pixels: positions can be off by several mm more than sigma_xy says")
     stops = detect_stops(data, info.fps * (2 if fields else 1))
     for note in stops.notes:
         warnings.append(f"stops: {note}")

@@ -16,6 +16,15 @@ __all__ = ["unwrap_angle", "initial_state", "choose_axes", "to_shot_frame"]
 
 #: Displacement (m) below which a rock is taken not to translate (axis from the image).
 MIN_TRAVEL_M = 0.05
+#: How far a rock's path departs from the quadratic of :func:`initial_state` when it is
+#: extrapolated back to t = 0 (m per s^3 of span): the bound measured for a quadratic
+#: through a curling rock's path in :data:`curltrack.track.segments.MODEL_JERK_M_S3`.
+EXTRAPOLATION_M_S3 = 4e-4
+#: Largest deceleration of a sliding rock (m/s^2): mu g with mu <= 0.03 at the slowest
+#: speeds of the paper's law; bounds the error of a straight line extrapolated back.
+MAX_DECELERATION_M_S2 = 0.3
+#: Floor of a frame's position scatter about the initial fit (m).
+MIN_SCATTER_M = 0.5e-3
 
 
 def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> np.ndarray:
@@ -76,6 +85,35 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_point
     return q0, rate
 
 
+def _origin_sigma(t: np.ndarray, q: np.ndarray, window_s: float = 0.8,
+                  min_points: int = 8) -> float:
+    """1 sigma (m) of the origin extrapolated back to t = 0 by :func:`initial_state`.
+
+    The fit's own extrapolation variance (from its design and the frames' scatter) plus
+    a model term: the path's departure from a quadratic (``EXTRAPOLATION_M_S3``), or for
+    a straight line through too few frames, the deceleration it cannot see
+    (``MAX_DECELERATION_M_S2``).  Infinite when fewer than two frames are measured.
+    """
+    n = min(max(min_points, int(np.count_nonzero(t <= t[0] + window_s))), t.size)
+    deg = 2 if n >= 6 else (1 if n >= 2 else 0)
+    if deg == 0:
+        return float("inf")
+    A = np.vander(t[:n], deg + 1, increasing=True)
+    coef, *_ = np.linalg.lstsq(A, q[:n], rcond=None)
+    dof = n - deg - 1
+    res = q[:n] - A @ coef
+    scatter = max(float(np.sqrt(np.sum(res ** 2) / (2 * dof))) if dof > 0 else 0.0,
+                  MIN_SCATTER_M)
+    a0 = np.linalg.pinv(A.T @ A)[0, 0]
+    stat = scatter * np.sqrt(a0)
+    span = float(t[n - 1] - t[0])
+    if deg == 2:
+        model = EXTRAPOLATION_M_S3 * ((t[0] + span) ** 3 - span ** 3)
+    else:
+        model = 0.5 * MAX_DECELERATION_M_S2 * float(t[0]) * (float(t[0]) + span)
+    return float(np.hypot(stat, model))
+
+
 def choose_axes(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Lattice unit axes (x_hat, y_hat) of the shot frame: +y = the lattice axis (of
     +-x, +-y) closest to ``direction``; +x = +y turned 90 deg clockwise."""
@@ -107,7 +145,9 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     dict
         ``x``, ``y``, ``theta`` (N,) with NaN where not ok; ``origin`` (2,) and
         ``x_hat``, ``y_hat`` (lattice-frame unit vectors), ``theta0`` (rad),
-        ``direction_source`` ("travel" or "image up").
+        ``direction_source`` ("travel" or "image up"), ``origin_sigma_m``: the origin's
+        uncertainty from extrapolating back to t = 0 when the first measured frame is
+        later (m; 0 when it is at t = 0).
     """
     ok = np.asarray(ok, bool)
     idx = np.flatnonzero(ok)
@@ -133,5 +173,7 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     theta = np.full(t.shape, np.nan)
     x[idx], y[idx] = disp @ x_hat, disp @ y_hat
     theta[idx] = th - th0
+    origin_sigma = _origin_sigma(tt, cc) if tt.size and tt[0] > 0 else 0.0
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
-            "y_hat": y_hat, "theta0": float(th0), "direction_source": source}
+            "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
+            "origin_sigma_m": float(origin_sigma)}

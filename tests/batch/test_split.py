@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from curltrack.batch.split import segment_motion
+from curltrack.series.segment import segment_motion
 from curltrack.physics import ShotModel
 from curltrack.simulate import simulate_series
 

@@ -67,7 +67,7 @@ def make_series(model, effects=(), rng=None, heading_deg=None, instrument=None):
         s = simulate_series(model, [Effect(n, p) for n, p in effects], noise_m=NOISE_M,
                             noise_rad=NOISE_RAD, seed=int(rng.integers(2**31)))
     if heading_deg is not None:
-        s.meta["rink_heading_deg"] = heading_deg
+        s = s.with_meta(rink_heading_deg=heading_deg)
     return s
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from curltrack.discover import scoring
-from curltrack.discover.noise import estimate_noise
+from curltrack.series.noise import estimate_noise
 from curltrack.discover.residuals import Segment, ljung_box, runs_test, structure_tests
 
 

@@ -37,9 +37,15 @@ def random_setup(rng) -> dict:
     return dict(motion=str(rng.choice(["ladder", "handheld"])), height_m=rng.uniform(1.4, 3.2),
                 tilt_deg=rng.uniform(0.0, 3.0), k1=rng.uniform(-0.1, 0.0),
                 spacing_m=float(rng.choice([0.1, 0.15, 0.2, 0.3])),
-                occlusion=bool(rng.random() < 0.25), view_m=rng.uniform(1.3, 2.0),
-                size=[(480, 270), (640, 360)][int(rng.integers(2))], v0=rng.uniform(0.4, 0.9),
-                seed=int(rng.integers(2**31)))
+                occlusion=bool(rng.random() < 0.25), v0=rng.uniform(0.4, 0.9),
+                seed=int(rng.integers(2**31)), **_frame(rng))
+
+
+def _frame(rng) -> dict:
+    """Frame size and view with >= 330 px/m on the ice (2.5 cm markers >= 8 px): what
+    the tracker needs (tests/hardening/CATALOGUE.md)."""
+    size = [(480, 270), (640, 360)][int(rng.integers(2))]
+    return dict(size=size, view_m=rng.uniform(1.2, size[0] / 330.0))
 
 
 def render_setup(out: Path, motion, height_m, tilt_deg, k1, spacing_m, occlusion=False,
@@ -68,6 +74,8 @@ def refused(video, rig, factor: float, height_m=None) -> str:
     try:
         track_video(video, r)
     except TrackingError as exc:
+        if "the grid's scale" not in str(exc) and "rig layout" not in str(exc):
+            raise  # (not the scale check: the set-up itself cannot be tracked)
         return str(exc)
     return ""
 

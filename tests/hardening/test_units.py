@@ -6,6 +6,8 @@ wrong unit or convention; the right one must never be flagged.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -81,7 +83,7 @@ def test_right_units_never_flagged(seed):
 def test_one_row_per_second_in_ms_also_caught():
     """t in ms at a coarse rate: the span, not the step, tells."""
     s = _wrong(_shot(3), "ms")
-    s.data = s.data.iloc[::30].reset_index(drop=True)
+    s = replace(s, data=s.data.iloc[::30].reset_index(drop=True))
     with pytest.raises(Exception, match="milliseconds"):
         check_units(s)
 

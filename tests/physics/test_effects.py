@@ -183,7 +183,8 @@ def test_effect_defaults_and_duplicates():
     assert e.params == {"t_s": 3.0, "dvx_m_per_s": 0.0, "dvy_m_per_s": 0.0,
                         "domega_rad_per_s": 0.0}
     assert set(EFFECTS) == {"velocity_dependent_friction", "ice_slope", "friction_patch",
-                            "late_curl", "pick"}
+                            "late_curl", "pick", "friction_field", "spin_coupling",
+                            "translation_coupling", "curl_spin_dependence"}
     with pytest.raises(ParameterError, match="once"):
         gather([Effect("late_curl", {"k": 1}), Effect("late_curl", {"k": 2})])
     terms = gather([("ice_slope", {"slope_x_mm_per_m": 1}), ("ice_slope", {"slope_x_mm_per_m": 2})])

@@ -51,7 +51,8 @@ def _check(pos, theta, what):
 
 def test_sigma_calibrated_on_a_random_setup(tmp_path):
     seed = int(np.random.SeedSequence().entropy % (1 << 32))
-    _check(*_random_setup(tmp_path, seed, [(640, 360)]))
+    # (640x360 set-ups at 2.6 m with JPEG 40 may not show the lattice at all)
+    _check(*_random_setup(tmp_path, seed, [(960, 540)]))
 
 
 @pytest.mark.slow

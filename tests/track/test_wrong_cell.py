@@ -79,7 +79,9 @@ def _check_no_wrong_row(m, what):
 
 def test_lattice_lost_while_moving_fast_no_wrong_cell(tmp_path):
     seed = int(np.random.SeedSequence().entropy % (1 << 32))
-    _check_no_wrong_row(*_lost_lattice_case(tmp_path, seed))
+    # (at 640x360 a fast handheld shot is often not measurable at all - an error, not a
+    # wrong row - and then tests nothing)
+    _check_no_wrong_row(*_lost_lattice_case(tmp_path, seed, size=(960, 540)))
 
 
 @pytest.mark.slow

@@ -1,4 +1,9 @@
-"""Measurement-noise level of a series, estimated from the data itself.
+"""Measurement noise of a series, estimated from the data itself: the one estimator.
+
+:func:`estimate_noise` (an AR(1) model per coordinate) is what ``fit`` and ``discover``
+both weight a shot by; :func:`white_sigma` (lag-1 second differences only) is the quick
+scale the stop detector and the shot segmentation compare motion against;
+:func:`robust_sigma` is the robust spread (1.4826 x MAD) they are built on.
 
 The rock's motion is smooth on the scale of a frame (accelerations of ~0.1 m/s^2 move the
 second difference of x or y by ~0.1 mm at 30 fps), so the second differences of a
@@ -76,8 +81,48 @@ class Noise:
                 "inflation": self.inflation, "tau": self.tau}
 
 
-def _robust_scale(v):
-    return 1.482602218505602 * float(np.median(np.abs(v - np.median(v))))
+#: sigma / MAD of a normal distribution, 1 / Phi^-1(3/4)
+MAD_TO_SIGMA = 1.482602218505602
+
+
+def robust_sigma(v, centre=None) -> float:
+    """1-sigma of normal noise from the median absolute deviation about ``centre``
+    (default: the median) -- a spread that a few outliers (a pick, a stop) do not move."""
+    v = np.asarray(v, dtype=float)
+    c = np.median(v) if centre is None else centre
+    return MAD_TO_SIGMA * float(np.median(np.abs(v - c)))
+
+
+def white_sigma(q, ok=None, min_diffs: int = 1) -> float:
+    """1-sigma white measurement noise of a smooth signal from its lag-1 second differences.
+
+    For white noise of sigma s the second difference has sigma s sqrt(6); the smooth
+    motion itself contributes a dt^2, negligible at video rates (~0.1 mm at 30 fps).
+
+    Parameters
+    ----------
+    q : (N,) array
+        Samples at consecutive frames.
+    ok : (N,) bool array, optional
+        Valid samples; only second differences of three valid samples are used.
+    min_diffs : int
+        Fewer usable second differences than this give 0.
+
+    Returns
+    -------
+    float
+        Same units as ``q``; 0 when too few samples.
+    """
+    q = np.asarray(q, dtype=float)
+    if q.size < 3:
+        return 0.0
+    d2 = q[2:] - 2.0 * q[1:-1] + q[:-2]
+    if ok is not None:
+        ok = np.asarray(ok, bool)
+        d2 = d2[ok[2:] & ok[1:-1] & ok[:-2]]
+    if d2.size < max(min_diffs, 1):
+        return 0.0
+    return robust_sigma(d2) / np.sqrt(6.0)
 
 
 def estimate_noise(frame, q, *, t=None, t_stop=None, name="<series>", field="x",
@@ -120,7 +165,7 @@ def estimate_noise(frame, q, *, t=None, t_stop=None, name="<series>", field="x",
                                   f"{_MIN_DIFFS})", path=name, where=field)
             break
         n_used = max(n_used, d2.size)
-        logv.append(2.0 * np.log(max(_robust_scale(d2), 1e-300)))
+        logv.append(2.0 * np.log(max(robust_sigma(d2), 1e-300)))
     logv = np.array(logv)
     if not np.isfinite(logv).all() or logv[0] < -600:
         return Noise(float(floor), 0.0, n_used, None)
@@ -145,7 +190,7 @@ def estimate_noise(frame, q, *, t=None, t_stop=None, name="<series>", field="x",
     return Noise(float(sigma), rho, int(n_used), rest)
 
 
-def whiten_matrix_apply(v, rho):
+def whiten(v, rho):
     """Apply the AR(1) whitening transform along axis 0 of ``v`` (1-D or 2-D).
 
     ``w_0 = v_0``, ``w_i = (v_i - rho v_{i-1}) / sqrt(1 - rho^2)``: unit-variance white
@@ -159,6 +204,43 @@ def whiten_matrix_apply(v, rho):
     out[0] = v[0]
     out[1:] = (v[1:] - rho * v[:-1]) / np.sqrt(1.0 - rho * rho)
     return out
+
+
+def row_sigma(frame, q, *, t=None, t_stop=None, weights=None, name="<series>", field="x",
+              floor=0.0) -> tuple[Noise, np.ndarray]:
+    """The 1-sigma noise of every row of one coordinate: how ``fit`` and ``discover``
+    weight a shot.
+
+    The level is the data's own (:func:`estimate_noise`); a tracker's per-frame estimate
+    (``weights``, e.g. the ``sigma_xy`` column) only modulates it from row to row,
+    relative to its median (within 0.5-10x), when more than half its rows are usable.
+
+    Parameters
+    ----------
+    frame, q, t, t_stop, name, field, floor
+        As for :func:`estimate_noise`.
+    weights : array, optional
+        Per-row 1-sigma estimates (same units as ``q``); NaN or <= 0 where unknown.
+
+    Returns
+    -------
+    (Noise, ndarray)
+        The noise model and the per-row sigma (units of ``q``).
+
+    Raises
+    ------
+    SeriesError
+        Too few consecutive measured frames to estimate the noise.
+    """
+    noise = estimate_noise(frame, q, t=t, t_stop=t_stop, name=name, field=field, floor=floor)
+    s = np.full(np.asarray(q).size, noise.sigma)
+    if weights is not None:
+        w = np.asarray(weights, dtype=float)
+        good = np.isfinite(w) & (w > 0)
+        if good.sum() > 0.5 * w.size:
+            med = float(np.median(w[good]))
+            s = noise.sigma * np.where(good, np.clip(w / med, 0.5, 10.0), 1.0)
+    return noise, s
 
 
 #: whitened residuals are high-passed at this scale (s) before their noise is measured:

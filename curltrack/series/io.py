@@ -10,15 +10,15 @@ and anything else (kept as is).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from . import __version__
-from ._atomic import atomic_path, write_json
-from .errors import SeriesError
+from .. import __version__
+from .._atomic import atomic_path, write_json
+from ..errors import SeriesError
 
 COLUMNS = ("frame", "t", "x", "y", "theta", "ok")
 OPTIONAL_COLUMNS = ("sigma_xy", "sigma_theta", "quality")
@@ -27,9 +27,13 @@ SIDECAR_KEYS = ("fps", "start_frame", "n_frames", "stop_frame_translation",
                 "camera_height_m", "grid_spacing_px", "frames_lost", "warnings", "version")
 
 
-@dataclass
+@dataclass(frozen=True)
 class Series:
     """A shot's per-frame series and its sidecar metadata.
+
+    A value: no stage of curltrack edits a series it is given (:meth:`with_meta` and
+    :func:`dataclasses.replace` make new ones), so one series can be fitted, discovered
+    and written in any order with the same results.
 
     Attributes
     ----------
@@ -39,6 +43,11 @@ class Series:
         The sidecar (``fps``, stop frames/times, ``warnings`` ...).
     path : Path or None
         Where it was read from.
+
+    Examples
+    --------
+    >>> s = read_series("SHOT.csv")                              # doctest: +SKIP
+    >>> s2 = s.with_meta(t_stop_translation=None)   # s itself unchanged  # doctest: +SKIP
     """
 
     data: pd.DataFrame
@@ -47,7 +56,12 @@ class Series:
 
     @property
     def warnings(self) -> list:
-        return self.meta.setdefault("warnings", [])
+        """The sidecar's warnings (a copy)."""
+        return list(self.meta.get("warnings") or [])
+
+    def with_meta(self, **changes) -> "Series":
+        """A new series whose sidecar has ``changes`` applied (data shared, unchanged)."""
+        return replace(self, meta={**self.meta, **changes})
 
     @property
     def measured(self) -> pd.DataFrame:
@@ -150,7 +164,7 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
     if (dt <= 0).any():
         row = int(np.flatnonzero(dt <= 0)[0]) + 1
         kind = "duplicate" if dt[row - 1] == 0 else "decreasing"
-        from .sanity import MAX_T_S
+        from ..sanity import MAX_T_S
 
         hint = (": t looks like a clock time, not seconds since the release"
                 if abs(t[row]) > MAX_T_S else "")
@@ -178,10 +192,29 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
 def read_series(path) -> Series:
     """Read a SHOT.csv or SHOT.parquet and its sidecar (if any), validated.
 
+    Parameters
+    ----------
+    path : str or Path
+        The series file; its sidecar is the same name with ``.json`` (a Parquet file may
+        carry the sidecar in its metadata instead).
+
+    Returns
+    -------
+    Series
+        Contract columns (``ok`` = 1 rows with an empty x, y or theta become ``ok`` = 0,
+        with a warning) and the sidecar (``warnings`` always present).
+
     Raises
     ------
     SeriesError
         The file is missing, unreadable or violates the contract.
+
+    Examples
+    --------
+    >>> from curltrack import read_series
+    >>> s = read_series("out/demo/shot.csv")           # doctest: +SKIP
+    >>> s.measured[["t", "x", "y", "theta"]].head()     # doctest: +SKIP
+    >>> s.meta["t_stop_translation"]                    # doctest: +SKIP
     """
     path = Path(path)
     if not path.exists():
@@ -223,10 +256,26 @@ def _parquet_meta(path) -> dict | None:
 def write_series(path, series: Series | pd.DataFrame, meta: dict | None = None) -> Path:
     """Write a series (``.csv`` or ``.parquet`` by extension) and its sidecar, atomically.
 
+    Parameters
+    ----------
+    path : str or Path
+        ``SHOT.csv`` or ``SHOT.parquet``; the sidecar goes beside it as ``SHOT.json``.
+    series : Series or DataFrame
+        The series (its ``meta`` is the sidecar unless ``meta`` is given), or a table
+        with the contract's columns.
+    meta : dict, optional
+        The sidecar (``version`` and ``warnings`` are added when missing).
+
     Returns
     -------
     Path
         The sidecar's path.
+
+    Examples
+    --------
+    >>> from curltrack import ShotModel, simulate_series, write_series
+    >>> write_series("sim.csv", simulate_series(ShotModel(v0=2.0, omega0=1.5)))  # doctest: +SKIP
+    PosixPath('sim.json')
     """
     if isinstance(series, Series):
         data, meta = series.data, (meta if meta is not None else series.meta)

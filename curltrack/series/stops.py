@@ -24,7 +24,9 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
-__all__ = ["StopTimes", "detect_stops", "fit_final_approach", "noise_sigma"]
+from .noise import robust_sigma, white_sigma
+
+__all__ = ["StopTimes", "detect_stops", "fit_final_approach", "series_stops"]
 
 #: Displacement (in units of the noise sigma) below which a coordinate is "not moving".
 MIN_MOTION_SIGMA = 12.0
@@ -65,20 +67,6 @@ class StopTimes:
         d = asdict(self)
         d.pop("notes")
         return d
-
-
-def noise_sigma(q: np.ndarray) -> float:
-    """Robust white-noise sigma of a smooth signal from its second differences.
-
-    For white noise of sigma s, the second difference has sigma s*sqrt(6); the smooth
-    motion itself contributes a*dt^2, negligible at video rates.
-    """
-    q = np.asarray(q, dtype=float)
-    if q.size < 4:
-        return 0.0
-    d2 = np.diff(q, 2)
-    mad = np.median(np.abs(d2 - np.median(d2)))
-    return float(1.4826 * mad / np.sqrt(6.0))
 
 
 def _reduced_residual(t_F, lam, tw, Qw, quad, sigma):
@@ -145,7 +133,7 @@ def _tail_scatter(t: np.ndarray, q: np.ndarray, n: int = 12) -> float:
         return 0.0
     tt, qq = t[-n:], q[-n:]
     resid = qq - np.polyval(np.polyfit(tt - tt[0], qq, 1), tt - tt[0])
-    return float(1.4826 * np.median(np.abs(resid - np.median(resid))))
+    return robust_sigma(resid)
 
 
 def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | None = None,
@@ -164,7 +152,8 @@ def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | N
     dt : float
         Nominal frame period (s).
     sigma : float, optional
-        Noise sigma of ``q``; estimated from second differences of column 0 when None.
+        Noise sigma of ``q``; estimated from second differences of column 0 when None
+        (:func:`curltrack.series.noise.white_sigma`).
     quad : bool
         Add a ``- b tau^2`` term to the columns after the first.  The paper's curl x(t) near the stop is
         exactly ``x_F + A tau^lambda + B tau^2`` (its linear term cancels), so with this
@@ -184,7 +173,7 @@ def fit_final_approach(t: np.ndarray, q: np.ndarray, dt: float, sigma: float | N
     if n < 8:
         return None, None, "too few measured frames"
     if sigma is None:
-        sigma = noise_sigma(q)
+        sigma = white_sigma(q)
     # Tracking errors are partly correlated from frame to frame, so second differences
     # can underestimate the scatter at rest; the detrended tail measures it directly.
     sigma = max(sigma, _tail_scatter(t, q))
@@ -313,7 +302,7 @@ def detect_stops(data: pd.DataFrame, fps: float | None = None) -> StopTimes:
         out.notes.append("too few measured frames to detect stops")
         return out
     q_tr = _translation_coordinate(x, y)
-    sig_xy = max(noise_sigma(x), noise_sigma(y))
+    sig_xy = max(white_sigma(x), white_sigma(y))
     t_tr, e_tr, note = fit_final_approach(t, q_tr, dt, sig_xy if sig_xy > 0 else None,
                                           quad=True)
     if note:
@@ -335,3 +324,26 @@ def detect_stops(data: pd.DataFrame, fps: float | None = None) -> StopTimes:
     out.stop_frame_translation = _first_frame_at(data, t_tr)
     out.stop_frame_rotation = _first_frame_at(data, t_rot)
     return out
+
+
+def series_stops(series) -> tuple[float | None, float | None, list[str]]:
+    """Stop times of a :class:`~curltrack.series.Series` as ``fit`` and ``discover`` use them.
+
+    The sidecar's ``t_stop_translation`` / ``t_stop_rotation`` when it has them (null:
+    that motion did not stop in the video); else detected from the series
+    (:func:`detect_stops`), with a warning naming the file.  The series is not changed.
+
+    Returns
+    -------
+    (t_stop_translation, t_stop_rotation, warnings)
+        Times in s (None: no stop) and the warnings to pass on.
+    """
+    keys = ("t_stop_translation", "t_stop_rotation")
+    meta = series.meta
+    if all(k in meta for k in keys):
+        return meta[keys[0]], meta[keys[1]], []
+    found = detect_stops(series.data, meta.get("fps"))
+    t_tr = meta.get(keys[0], found.t_stop_translation)
+    t_rot = meta.get(keys[1], found.t_stop_rotation)
+    return t_tr, t_rot, [f"{series.name}: no sidecar with stop times; stops detected from "
+                         f"the series (translation {t_tr}, rotation {t_rot} s)"]

@@ -5,7 +5,8 @@ import pandas as pd
 import pytest
 
 from curltrack.physics import closed_form as cf
-from curltrack.track.stops import detect_stops, noise_sigma
+from curltrack.series.noise import white_sigma
+from curltrack.series.stops import detect_stops
 
 FPS = 30.0
 NOISE_M = 0.002
@@ -93,11 +94,11 @@ def test_no_stop_when_still_moving_or_not_moving():
     assert abs(s.t_stop_rotation - 7.3) * FPS < 1.5
 
 
-def test_noise_sigma_recovers_white_noise():
+def test_white_sigma_recovers_white_noise():
     rng = np.random.default_rng(0)
     t = np.linspace(0, 10, 600)
     q = cf.decel_position(t, 20.0, 1.8, 12.0) + rng.normal(0, 0.003, t.size)
-    assert noise_sigma(q) == pytest.approx(0.003, rel=0.15)
+    assert white_sigma(q) == pytest.approx(0.003, rel=0.15)
 
 
 def test_one_outlying_frame_at_rest_is_not_motion():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from curltrack.track.stops import _grid_cost, _reduced_residual
+from curltrack.series.stops import _grid_cost, _reduced_residual
 
 
 @pytest.mark.parametrize("quad, seed", [(True, 0), (False, 1), (True, 2)])

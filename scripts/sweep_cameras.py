@@ -1,0 +1,151 @@
+"""The camera sweep: random set-ups of real cameras' artefacts, rendered, tracked, scored.
+
+    python scripts/sweep_cameras.py [--n 10] [--seed S] [--scale 0.5] [--out DIR]
+                                    [--table FILE.md] [--no-track]
+
+Each set-up is drawn by :func:`curltrack.render.sweep.draw_setup` (kinds in turn:
+camcorder, phone, action, ladder, handheld; every other choice at random from the seed),
+rendered with its truth and rig beside it in DIR, then tracked with
+:func:`curltrack.track.track_video` and scored against the truth:
+
+- ``pos_rms_mm`` / ``theta_rms_deg``: RMS error of the rows with ``ok`` = 1;
+- ``measured``: fraction of rows with ``ok`` = 1;
+- ``max_mm``: the largest position error of an ``ok`` row;
+- ``z_xy`` / ``z_theta``: standard deviation of error / reported sigma (x and y errors
+  over ``sigma_xy``; theta over ``sigma_theta``) - 1 when the sigmas are honest;
+- ``stop_err``: tracked minus true translation stop frame.
+
+Interlaced video: a tracked series with a ``field`` column is compared field by field;
+one without (one row per frame) against the truth of each frame's first field (the
+frame's timestamp).  A failed track is reported with its one-line error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from curltrack.render.sweep import KINDS, draw_setup  # noqa: E402
+
+
+def score(series, truth) -> dict:
+    """Errors of a tracked series against the renderer's truth (see the module doc)."""
+    s, t = series.data, truth.data
+    if "field" in t.columns and "field" not in s.columns:
+        t = t[t["field"] == 0]
+    keys = ["frame", "field"] if "field" in s.columns else ["frame"]
+    m = s.merge(t[keys + ["x", "y", "theta"]], on=keys, suffixes=("", "_t"))
+    ok = (m["ok"] == 1) & np.isfinite(m[["x", "y"]]).all(axis=1)
+    dx, dy = (m.x - m.x_t)[ok], (m.y - m.y_t)[ok]
+    e = np.hypot(dx, dy)
+    dth = (m.theta - m.theta_t)[ok]
+    out = dict(rows=len(m), measured=float(ok.mean()) if len(m) else 0.0)
+    if ok.any():
+        out.update(pos_rms_mm=1e3 * float(np.sqrt(np.mean(e ** 2))),
+                   theta_rms_deg=float(np.degrees(np.sqrt(np.nanmean(dth ** 2)))),
+                   max_mm=1e3 * float(e.max()))
+        if "sigma_xy" in m.columns:
+            sig = m["sigma_xy"][ok]
+            out["z_xy"] = float(np.nanstd(np.r_[dx / sig, dy / sig]))
+        if "sigma_theta" in m.columns:
+            out["z_theta"] = float(np.nanstd(dth / m["sigma_theta"][ok]))
+    a, b = series.meta.get("stop_frame_translation"), truth.meta.get("stop_frame_translation")
+    if a is not None and b is not None:
+        out["stop_err"] = int(a) - int(b)
+    return out
+
+
+def run(i: int, seed: int, n: int, scale: float, out: Path, track: bool,
+        random_kind: bool) -> dict:
+    from curltrack.errors import CurltrackError
+    from curltrack.render import render_video
+    from curltrack.rig import default_rig, load_rig
+
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(n)[i])
+    kind = None if random_kind else KINDS[i % len(KINDS)]
+    setup = draw_setup(rng, kind, scale)
+    video = out / f"setup{i:02d}_{setup.kind}.mp4"
+    t0 = time.process_time()
+    truth = render_video(setup.shot, default_rig(), video, video.with_suffix(".truth.csv"),
+                         setup.config, seed=setup.seed)
+    row = dict(i=i, **setup.summary, frames=truth.meta["n_frames"],
+               render_cpu_s=round(time.process_time() - t0, 1))
+    if not track:
+        return row
+    from curltrack.track import track_video
+
+    t0 = time.process_time()
+    try:
+        series = track_video(video, load_rig(video.with_suffix(".rig.toml")))
+    except CurltrackError as exc:
+        row.update(error=str(exc).splitlines()[0][:160])
+        return row
+    finally:
+        row["track_cpu_s"] = round(time.process_time() - t0, 1)
+    row.update(score(series, truth))
+    row["warnings"] = len(series.meta.get("warnings", []))
+    return row
+
+
+COLS = [("i", "#", "{}"), ("kind", "kind", "{}"), ("size", "size", "{}"),
+        ("fps", "fps", "{}"), ("motion", "motion", "{}"), ("lens", "lens", "{}"),
+        ("scan", "scan", "{}"), ("readout_ms", "RS ms", "{}"), ("vfr", "VFR", "{}"),
+        ("codec", "codec", "{}"), ("artefacts", "artefacts", "{}"),
+        ("measured", "measured", "{:.0%}"), ("pos_rms_mm", "pos RMS mm", "{:.2f}"),
+        ("theta_rms_deg", "θ RMS °", "{:.3f}"), ("max_mm", "max ok err mm", "{:.1f}"),
+        ("z_xy", "std e/σ xy", "{:.2f}"), ("z_theta", "std e/σ θ", "{:.2f}"),
+        ("stop_err", "stop Δframe", "{:+d}"), ("error", "error", "{}")]
+
+
+def table(rows) -> str:
+    """The markdown table of the rows."""
+    lines = ["| " + " | ".join(h for _, h, _ in COLS) + " |",
+             "|" + "---|" * len(COLS)]
+    for r in rows:
+        cells = []
+        for key, _, fmt in COLS:
+            v = r.get(key)
+            cells.append("" if v is None else fmt.format(v))
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=10)
+    ap.add_argument("--seed", type=int, default=None, help="default: a fresh one (printed)")
+    ap.add_argument("--scale", type=float, default=1.0)
+    ap.add_argument("--out", type=Path, default=Path("sweep_cameras"))
+    ap.add_argument("--table", type=Path, default=None, help="write the markdown table here")
+    ap.add_argument("--no-track", action="store_true")
+    ap.add_argument("--random-kind", action="store_true", help="kinds at random, not in turn")
+    ap.add_argument("--only", type=str, default=None,
+                    help="comma-separated set-up indices to run (the same set-ups as in the "
+                    "full sweep: several processes can share one)")
+    a = ap.parse_args(argv)
+    seed = a.seed if a.seed is not None else int(np.random.SeedSequence().entropy % 2**32)
+    a.out.mkdir(parents=True, exist_ok=True)
+    print(f"sweep seed {seed}, {a.n} set-ups, scale {a.scale}", file=sys.stderr)
+    rows = []
+    todo = range(a.n) if a.only is None else [int(v) for v in a.only.split(",")]
+    for i in todo:
+        rows.append(run(i, seed, a.n, a.scale, a.out, not a.no_track, a.random_kind))
+        print(rows[-1], file=sys.stderr, flush=True)
+        text = (f"Camera sweep: seed {seed}, scale {a.scale}, "
+                f"`python scripts/sweep_cameras.py --n {a.n} --seed {seed} "
+                f"--scale {a.scale}" + (f" --only {a.only}" if a.only else "") + "`\n\n"
+                + table(rows) + "\n")
+        if a.table:
+            a.table.write_text(text)
+    print(table(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
