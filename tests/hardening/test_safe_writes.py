@@ -207,9 +207,12 @@ def test_disk_full_on_a_real_tiny_filesystem(cli, tmp_path, rig_file, good_clip,
 
 
 def _start(args, cwd):
+    # default SIGINT in the child: a pytest-xdist worker ignores SIGINT, and an ignored
+    # signal is inherited (Python then installs no KeyboardInterrupt handler)
     return subprocess.Popen([sys.executable, "-m", "curltrack", *map(str, args)], cwd=cwd,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            start_new_session=True)
+                            start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def _wait_for_temp(d: Path, pattern: str, proc, timeout=120.0, min_size=1):
