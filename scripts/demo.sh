@@ -10,23 +10,26 @@ RIG="fixtures/rig.toml"
 mkdir -p "$OUT"
 say() { printf '\n\033[1m== %s\033[0m\n' "$*"; }
 
-say "1/5 simulate a pebbled-ice draw (paper model) with a friction patch hidden at y = 3.5-5.5 m"
+say "1/6 simulate a pebbled-ice draw (paper model) with a friction patch hidden at y = 3.5-5.5 m"
 curltrack simulate --v0 1.4 --omega0 1.6 --rig "$RIG" \
     --effect friction_patch --param y_start_m=3.5 --param y_end_m=5.5 --param factor=1.6 \
     -o "$OUT/sim.csv"
 
-say "2/5 render the overhead video (ladder camera, lens distortion, blur, noise, compression)"
+say "2/6 render the overhead video (ladder camera, lens distortion, blur, noise, compression)"
 curltrack render "$OUT/sim.csv" --rig "$RIG" -o "$OUT/shot.mp4" --truth "$OUT/truth.csv" \
     --seed 7 --camera ladder
 
-say "3/5 track: video -> x(t), y(t), theta(t) and stop frames"
+say "3/6 track: video -> x(t), y(t), theta(t) and stop frames"
 curltrack track "$OUT/shot.mp4" --rig "$RIG" -o "$OUT/shot.csv" --overlay "$OUT/overlay.mp4"
 
-say "4/5 fit the paper's formulas"
+say "4/6 fit the paper's formulas"
 curltrack fit "$OUT/shot.csv" --rig "$RIG" -o "$OUT/fit.json" --plot "$OUT/fit.png"
 
-say "5/5 discover what the baseline model gets wrong"
+say "5/6 discover what the baseline model gets wrong"
 curltrack discover "$OUT/shot.csv" -o "$OUT/report.json" --plot "$OUT/report.png"
+
+say "6/6 a review page to check the track by eye (open it in a browser; no server needed)"
+curltrack review "$OUT/shot.csv" --rig "$RIG" --report "$OUT/report.json" -o "$OUT/review.html"
 
 python - "$OUT" <<'PY'
 import json, sys

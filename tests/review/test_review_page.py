@@ -96,7 +96,7 @@ def test_review_page_in_a_browser(page_file):
         assert state["currentFrame"] == f
         cursor = page.evaluate("document.getElementById('series').layout.shapes[0].x0")
         t_f = float(series.data.set_index("frame").loc[f, "t"])
-        assert abs(cursor - t_f) < 1e-9
+        assert abs(cursor - t_f) < 1e-6  # (plotly keeps float32 shapes; frames are >= 16 ms apart)
         # corrections: mark the markers of the shown frame by clicking, then download
         page.click("#mark")
         box = page.locator("#clicks").bounding_box()

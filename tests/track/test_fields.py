@@ -7,6 +7,7 @@ through FFmpeg (PyAV), measure each field as its own exposure and give a 59.94 H
 whose ``t`` is each field's time, with a ``field`` column and ``"fields": true``.
 """
 
+from dataclasses import replace
 import numpy as np
 import pytest
 
@@ -79,7 +80,7 @@ def test_interlaced_h264_is_tracked_per_field(tmp_path):
     rig = default_rig()
     sim = simulate_series(ShotModel(v0=rng.uniform(0.8, 2.0), omega0=rng.uniform(0.5, 2.5)),
                           fps=2 * NTSC)
-    sim.data = sim.data.iloc[:120].reset_index(drop=True)
+    sim = replace(sim, data=sim.data.iloc[:120].reset_index(drop=True))
     motion = str(rng.choice(["ladder", "handheld"]))
     prog = tmp_path / "fields.mp4"
     truth = render_video(sim, rig, prog, config=RenderConfig(

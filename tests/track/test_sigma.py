@@ -36,7 +36,7 @@ def _random_setup(tmp_path, seed, sizes):
                        read_noise=rng.uniform(1, 5), shutter=rng.uniform(0.2, 0.9))
     sim = simulate_series(ShotModel(v0=rng.uniform(0.6, 2.5), omega0=rng.uniform(0.5, 3)),
                           fps=30)
-    sim.data = sim.data.iloc[:int(rng.integers(60, 120))].reset_index(drop=True)
+    sim = replace(sim, data=sim.data.iloc[:int(rng.integers(60, 120))].reset_index(drop=True))
     truth = render_video(sim, rig, tmp_path / "v.mp4", config=cfg,
                          seed=int(rng.integers(1 << 30)))
     series = track_video(tmp_path / "v.mp4", rig)

@@ -48,7 +48,7 @@ def _lost_lattice_case(tmp_path, seed, size=(640, 360), n_frames=90):
     rig = replace(default_rig(), spacing_x_m=sp, spacing_y_m=sp)
     v0 = rng.uniform(1.8, 3.0)
     sim = simulate_series(ShotModel(v0=v0, omega0=rng.uniform(0.5, 3.0)), fps=30)
-    sim.data = sim.data.iloc[:n_frames].reset_index(drop=True)
+    sim = replace(sim, data=sim.data.iloc[:n_frames].reset_index(drop=True))
     cam = CameraConfig(motion="handheld", height_m=rng.uniform(1.4, 2.2),
                        lag_s=rng.uniform(0.15, 0.35), jitter_m=rng.uniform(0.005, 0.02))
     clean = tmp_path / "clean.mp4"
