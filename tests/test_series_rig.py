@@ -89,6 +89,13 @@ def test_nan_in_measured_row_becomes_unmeasured_with_warning(tmp_path):
     assert any("row 3" in w for w in s.warnings)
 
 
+def test_infinite_theta_is_not_a_position_only_row(tmp_path):
+    p = _csv(tmp_path, "frame,t,x,y,theta,ok\n0,0,0,0,0,1\n1,0.03,0,0,inf,1\n2,0.06,0,0,,1\n")
+    s = read_series(p)
+    assert s.data["ok"].tolist() == [1, 0, 1]  # inf: not trusted; empty: position-only
+    assert any("infinite theta" in w and "row 3" in w for w in s.warnings)
+
+
 numbers = st.floats(allow_nan=True, allow_infinity=True, width=32)
 
 
@@ -108,7 +115,9 @@ def test_any_table_is_read_or_rejected_cleanly(tmp_path, rows):
     t = s.data["t"].to_numpy()
     assert np.all(np.diff(t) > 0) and np.isfinite(t).all()
     ok = s.data["ok"].to_numpy() == 1
-    assert np.isfinite(s.data.loc[ok, ["x", "y", "theta"]].to_numpy()).all()
+    assert np.isfinite(s.data.loc[ok, ["x", "y"]].to_numpy()).all()
+    # theta of a measured row: a number, or empty (a position-only row), never infinite
+    assert not np.isinf(s.data.loc[ok, "theta"].to_numpy()).any()
 
 
 @settings(max_examples=60, deadline=None)

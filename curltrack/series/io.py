@@ -179,6 +179,14 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
         warnings.append(f"{name}: {len(rows)} row(s) marked ok=1 have empty/NaN x or y "
                         f"(first at row {rows[0] + 2}); treated as ok=0")
         out.loc[holes, "ok"] = 0
+    # an infinite theta is not an empty one (position-only): the row is not trusted
+    inf_theta = ok & ~holes & np.isinf(out["theta"].to_numpy(float))
+    if inf_theta.any():
+        rows = np.flatnonzero(inf_theta)
+        warnings.append(f"{name}: {len(rows)} row(s) marked ok=1 have an infinite theta "
+                        f"(first at row {rows[0] + 2}); treated as ok=0")
+        out.loc[inf_theta, "ok"] = 0
+        holes = holes | inf_theta
     # position-only rows (contract): x, y measured, theta empty -- kept; theta is then
     # simply not used there.  A series with theta on some rows only is said so.
     no_theta = ok & ~holes & ~np.isfinite(out["theta"].to_numpy())
