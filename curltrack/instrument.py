@@ -161,11 +161,18 @@ class Sampling:
             t[0] = max(t[0], self.start_s)
         keep = np.ones(t.size, bool)
         lo, hi = t[0] + 1.0, t[-1] - 1.0 if t.size else 0.0
+        placed: list[tuple[float, float]] = []
         for _ in range(int(self.n_gaps)):
             if hi - lo <= self.max_gap_s:
                 break
             length = rng.uniform(min(2 * dt, self.max_gap_s), self.max_gap_s)
-            a = rng.uniform(lo, hi - length)
+            for _try in range(50):  # gaps apart by >= 2 periods: two never merge into one
+                a = rng.uniform(lo, hi - length)
+                if all(a + length + 2 * dt < a0 or a > b0 + 2 * dt for a0, b0 in placed):
+                    break
+            else:
+                continue
+            placed.append((a, a + length))
             keep &= ~((t > a) & (t < a + length))
         return frame[keep], t[keep]
 
