@@ -51,6 +51,16 @@ def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return out
 
 
+def _window_fit(t, q, window_s: float, min_points: int):
+    """The polynomial fit of :func:`initial_state` (before its robust pass): rows used
+    ``n``, degree (2, or 1 / 0 with too few rows), design ``A`` and coefficients."""
+    n = min(max(min_points, int(np.count_nonzero(t <= t[0] + window_s))), t.size)
+    deg = 2 if n >= 6 else (1 if n >= 2 else 0)
+    A = np.vander(t[:n], deg + 1, increasing=True)
+    coef, *_ = np.linalg.lstsq(A, q[:n], rcond=None)
+    return n, deg, A, coef
+
+
 def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_points: int = 8):
     """Value and rate at t = 0 from a quadratic fit to the first ``window_s`` seconds.
 
@@ -67,12 +77,8 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_point
     """
     q = np.asarray(q, float)
     q2 = q[:, None] if q.ndim == 1 else q
-    n = max(min_points, int(np.count_nonzero(t <= t[0] + window_s)))
-    n = min(n, t.size)
-    tt, qq = t[:n], q2[:n]
-    deg = 2 if n >= 6 else (1 if n >= 2 else 0)
-    A = np.vander(tt, deg + 1, increasing=True)
-    coef, *_ = np.linalg.lstsq(A, qq, rcond=None)
+    n, deg, A, coef = _window_fit(t, q2, window_s, min_points)
+    qq = q2[:n]
     if n > deg + 4:
         # one robust pass: frames more than 3 robust sigmas off the fit are dropped
         res = qq - A @ coef
@@ -94,12 +100,9 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, window_s: float = 0.8,
     a straight line through too few frames, the deceleration it cannot see
     (``MAX_DECELERATION_M_S2``).  Infinite when fewer than two frames are measured.
     """
-    n = min(max(min_points, int(np.count_nonzero(t <= t[0] + window_s))), t.size)
-    deg = 2 if n >= 6 else (1 if n >= 2 else 0)
+    n, deg, A, coef = _window_fit(t, q, window_s, min_points)
     if deg == 0:
         return float("inf")
-    A = np.vander(t[:n], deg + 1, increasing=True)
-    coef, *_ = np.linalg.lstsq(A, q[:n], rcond=None)
     dof = n - deg - 1
     res = q[:n] - A @ coef
     scatter = max(float(np.sqrt(np.sum(res ** 2) / (2 * dof))) if dof > 0 else 0.0,
