@@ -103,6 +103,10 @@ def test_review_page_in_a_browser(page_file):
         picks = [(0.25, 0.5), (0.75, 0.4)]
         for fx, fy in picks:
             page.mouse.click(box["x"] + fx * box["width"], box["y"] + fy * box["height"])
+        # (the page handles the clicks asynchronously: wait for the second one to land)
+        page.wait_for_function(
+            "Object.values(window.reviewState.corrections.frames)"
+            ".some(c => c.markers_px && c.markers_px.length >= 2)", timeout=10000)
         marked = page.evaluate("window.reviewState.corrections.frames")
         assert list(marked) == [str(f)], marked
         want = [[fx * 640 - 0.5, fy * 360 - 0.5] for fx, fy in picks]
