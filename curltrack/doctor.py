@@ -25,7 +25,6 @@ import numpy as np
 
 from .errors import CurltrackError, TrackingError
 from .rig import Rig
-from .track.results import TURN_WARN_DEG_PER_FRAME
 
 __all__ = ["Check", "DoctorReport", "diagnose"]
 
@@ -39,10 +38,9 @@ MIN_ROCK_PX = 45.0
 MIN_SPACING_PX = 8.0
 #: Camera heights a rig of this kind is mounted at (m).
 HEIGHT_RANGE_M = (0.8, 8.0)
-#: Camera turn between consecutive frames (deg/frame): above the first, positions lose
-#: accuracy (the limit ``track`` warns at; measured there); above the second the grid's
-#: cell index is lost (measured: from ~10 deg/frame).
-TURN_WARN_DEG, TURN_FAIL_DEG = TURN_WARN_DEG_PER_FRAME, 8.0
+# Camera turn between consecutive frames (deg/frame): above the rig's
+# tracking.turn_warn_deg_per_frame positions lose accuracy (the limit ``track`` warns
+# at); above turn_fail_deg_per_frame the grid's cell index is lost (~10 deg/frame).
 #: Sampled frames that are also checked against their next frame (camera turn rate).
 N_PAIRS = 3
 
@@ -225,11 +223,11 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
     _grid_checks(rep, rig, samples)
     _geometry_checks(rep, rig, samples)
     _turn_check(rep, [(found[i - 1][1], found[i][1], i - 1) for i in nxt
-                      if i - 1 in found and i in found], info.fps)
+                      if i - 1 in found and i in found], info.fps, rig.tracking)
     return rep
 
 
-def _turn_check(rep, pairs, fps: float):
+def _turn_check(rep, pairs, fps: float, settings):
     """Camera turn between consecutive frames, from the lattice's angle in each."""
     from .calib.grid import lattice_turn_deg
 
@@ -246,13 +244,14 @@ def _turn_check(rep, pairs, fps: float):
               "pairs": len(rates)}
     detail = (f"up to {worst:.2f} deg/frame ({per_s:.0f} deg/s) over {len(rates)} "
               f"frame pair(s)")
-    if worst > TURN_FAIL_DEG:
+    warn, fail = settings.turn_warn_deg_per_frame, settings.turn_fail_deg_per_frame
+    if worst > fail:
         rep.checks.append(Check("camera_turn", "fail", detail + f" at frame {frame}",
                                 "the camera turns too fast to follow the grid: hold it "
                                 "steadier or mount it", values))
-    elif worst > TURN_WARN_DEG:
+    elif worst > warn:
         rep.checks.append(Check("camera_turn", "warn", detail + f" at frame {frame}",
-                                f"above {TURN_WARN_DEG:g} deg/frame positions lose accuracy "
+                                f"above {warn:g} deg/frame positions lose accuracy "
                                 "(several mm): turn the camera more slowly", values))
     else:
         rep.checks.append(Check("camera_turn", "ok", detail, values=values))

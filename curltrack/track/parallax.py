@@ -26,23 +26,22 @@ import numpy as np
 
 __all__ = ["similarity_fit", "camera_centre", "focal_for_height", "HeightEstimate",
            "estimate_height", "correct_parallax", "layout_scale_mismatch",
-           "ICE_REFRACTIVE_INDEX", "LAYOUT_SCALE_RANGE"]
+           "ICE_REFRACTIVE_INDEX"]
 
 #: Threads under ``depth`` of ice look ``depth / n`` deep (paraxial refraction).
 ICE_REFRACTIVE_INDEX = 1.31
-#: Plausible range of the markers' apparent layout scale against the grid,
-#: s = H / (H - h): 1.01-1.3 for a lens 0.5-10 m above 0.114 m markers.  A marker
-#: layout a few tens of % off in the rig only loses the parallax correction (a warning:
-#: the grid is the ruler); far outside, the grid's metric scale itself contradicts the
-#: rig - a wrong spacing, or every other thread invisible - and every position would be
-#: scaled wrong.
-LAYOUT_SCALE_RANGE = (0.7, 1.6)
+# The plausible range of the markers' apparent layout scale against the grid,
+# s = H / (H - h) (1.01-1.3 for a lens 0.5-10 m above 0.114 m markers), is the rig's
+# TrackingSettings layout_scale_min..layout_scale_max (0.7-1.6).  A marker layout a few
+# tens of % off in the rig only loses the parallax correction (a warning: the grid is the
+# ruler); far outside, the grid's metric scale itself contradicts the rig - a wrong
+# spacing, or every other thread invisible - and every position would be scaled wrong.
 
 
 def layout_scale_mismatch(scale: float, rig) -> str:
     """Why the apparent layout scale ``scale`` (median over frames) contradicts the rig,
-    or "" when it is plausible (:data:`LAYOUT_SCALE_RANGE`)."""
-    lo, hi = LAYOUT_SCALE_RANGE
+    or "" when it is plausible (``rig.tracking.layout_scale_min`` .. ``_max``)."""
+    lo, hi = rig.tracking.layout_scale_min, rig.tracking.layout_scale_max
     if lo <= scale <= hi:
         return ""
     hint = (": is every other thread invisible (a thread colour like the ice)? Then give "

@@ -17,20 +17,13 @@ from ..series.stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
 
-#: Largest 1 sigma (m) of an origin extrapolated back to t = 0 that a series may carry
-#: (in sigma_xy); beyond it every position would be uncertain by more: an error.
-MAX_ORIGIN_SIGMA_M = 0.010
-
-#: Frames whose layout scale is this many robust sigmas off the video's are rejected.
-SCALE_OUTLIER_SIGMA = 6.0
-MIN_MEASURED = 8
-#: Camera turn (deg/frame, the grid's rotation in the image) above which SHOT.json warns.
-#: Measured on a 640x360 rendered draw turned steadily about the image centre: position
-#: RMS 1.5-1.9 mm (max 3.2) from 0 to 1.0 deg/frame, 2.5-3.3 mm (max 5-6) from 1.5 to
-#: 4.5 deg/frame; at 4.9 the grid was lost for 16 frames and re-found turned by 90 deg.
-#: Slow turns (12-20 deg/s at 30 fps = 0.4-0.67 deg/frame) are as accurate as a still
-#: camera and must not warn.  ``doctor`` uses the same limit.
-TURN_WARN_DEG_PER_FRAME = 1.0
+# The thresholds (largest origin sigma, layout-scale outliers, fewest measured frames,
+# the camera-turn warning) are the rig's TrackingSettings (curltrack.settings).
+# Camera turn: measured on a 640x360 rendered draw turned steadily about the image
+# centre: position RMS 1.5-1.9 mm (max 3.2) from 0 to 1.0 deg/frame, 2.5-3.3 mm (max 5-6)
+# from 1.5 to 4.5 deg/frame; at 4.9 the grid was lost for 16 frames and re-found turned
+# by 90 deg.  Slow turns (12-20 deg/s at 30 fps = 0.4-0.67 deg/frame) are as accurate as
+# a still camera and must not warn.  ``doctor`` uses the same limit.
 
 
 #: sigma_xy (per coordinate) = k x hypot(SIGMA_STAT_SCALE x the pixel-noise sigma of the
@@ -138,7 +131,7 @@ def _height(records, ok, rig: Rig, depth_eff: float, warnings: list) -> HeightEs
     return est
 
 
-def _resolve_cells(records, t, centre, ok, calib, warnings, path):
+def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
     """Put every grid segment in one cell index (:mod:`.segments`), in place.
 
     ``centre`` and the records' homographies of re-anchored segments are moved by whole
@@ -149,7 +142,7 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path):
 
     seg = np.array([r.segment for r in records])
     shift, unresolved, notes = resolve_segments(
-        t, centre, seg, ok, (calib.spacing_x_m, calib.spacing_y_m))
+        t, centre, seg, ok, (calib.spacing_x_m, calib.spacing_y_m), settings=settings)
     for i in np.flatnonzero(np.any(shift != 0, axis=1)):
         centre[i] += shift[i]
         records[i].H = np.array([[1.0, 0, shift[i, 0]], [0, 1.0, shift[i, 1]],
@@ -167,6 +160,7 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path):
 def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None) -> Series:
     """Assemble the Series (see :func:`curltrack.track.track_video` for the columns)."""
     n = len(records)
+    st = rig.tracking
     warnings: list[str] = []
     frame = np.array([r.frame for r in records])
     t = np.array([r.t for r in records], float)
@@ -177,7 +171,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     if ok.sum() >= 5:
         med = np.median(scale[ok])
         mad = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
-        bad = ok & (np.abs(scale - med) > SCALE_OUTLIER_SIGMA * max(mad, 1e-4))
+        bad = ok & (np.abs(scale - med) > st.scale_outlier_sigma * max(mad, 1e-4))
         for i in np.flatnonzero(bad):
             records[i].status = "marker layout inconsistent with the rest of the video"
         ok &= ~bad
@@ -188,12 +182,12 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
             rig.grid_depth_m / ICE_REFRACTIVE_INDEX)  # the grid against the rock's rulers
         if mismatch:
             raise TrackingError(mismatch, path=path, where=f"frames {frame[0]}-{frame[-1]}")
-    if ok.sum() < MIN_MEASURED:
+    if ok.sum() < st.min_measured_frames:
         span = f"frames {frame[0]}-{frame[-1]}" if n else None
-        if n < MIN_MEASURED:
+        if n < st.min_measured_frames:
             what = "the video has" if n == info.n_frames else "the tracked range has"
             raise TrackingError(f"{what} only {n} frame{'s' * (n != 1)}; a shot needs at "
-                                f"least {MIN_MEASURED} measured frames", path=path, where=span)
+                                f"least {st.min_measured_frames} measured frames", path=path, where=span)
         lost = "; ".join(f"{kind}: {len(frs)} frame{'s' * (len(frs) != 1)}"
                          for kind, frs, _ in reason_groups(records))
         raise TrackingError(f"the rock could be measured in only {int(ok.sum())} of {n} "
@@ -217,7 +211,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     app = np.array([records[i].centre_app for i in idx]).reshape(-1, 2)
     nd = np.where(np.isfinite(nadir[idx]).all(axis=1, keepdims=True), nadir[idx], app)
     centre[idx] = correct_parallax(app, nd, est.k)
-    idx = _resolve_cells(records, t, centre, ok, calib, warnings, path)
+    idx = _resolve_cells(records, t, centre, ok, calib, warnings, path, st)
     phi[idx] = [records[i].phi for i in idx]
     # image up direction in the lattice frame (first measured frame), for a still rock
     r0 = records[idx[0]]
@@ -225,7 +219,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
 
     p0 = undistort(np.nanmean(r0.markers_px, axis=0)[None], calib.K, calib.dist)
     a, b = apply_h(r0.H, np.vstack([p0, p0 + (0.0, -10.0)]))
-    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a)
+    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st)
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
     L = np.array([[m.x_m, m.y_m] for m in rig.markers])
@@ -236,7 +230,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
     sigma_xy = est.k * np.hypot(SIGMA_STAT_SCALE * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
                                 SIGMA_MISFIT_SCALE * sig_r)
-    if shot["origin_sigma_m"] > MAX_ORIGIN_SIGMA_M:
+    if shot["origin_sigma_m"] > st.max_origin_sigma_m:
         raise TrackingError(f"the first measured frame is at t = {t[ok][0]:.2f} s and the "
                             "origin (the rock at t = 0) cannot be extrapolated back to it "
                             f"better than ~{1e3 * shot['origin_sigma_m']:.0f} mm: give "
@@ -280,11 +274,12 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         warnings.append(f"{path}: frame(s) {frame_ranges(frs)}: {reason} (ok = 0)")
     turn_frames, turn = camera_turn(records, calib)
     turn_max = float(turn.max()) if turn.size else None
-    if turn_max is not None and turn_max > TURN_WARN_DEG_PER_FRAME:
-        n_fast = int((turn > TURN_WARN_DEG_PER_FRAME).sum())
+    turn_warn = st.turn_warn_deg_per_frame
+    if turn_max is not None and turn_max > turn_warn:
+        n_fast = int((turn > turn_warn).sum())
         warnings.append(f"{path}: frame {int(turn_frames[np.argmax(turn)])}: the camera turns "
                         f"{turn_max:.1f} deg/frame ({turn_max * info.fps:.0f} deg/s; "
-                        f"{n_fast} frame(s) above {TURN_WARN_DEG_PER_FRAME:g}): positions "
+                        f"{n_fast} frame(s) above {turn_warn:g}): positions "
                         "lose accuracy and the grid can be lost; turn the camera more "
                         "slowly")
     if abs(getattr(info, "pixel_aspect", 1.0) - 1.0) > 1e-3:
@@ -314,6 +309,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         frame_y_axis_lattice=shot["y_hat"].tolist(),
         frame_axis_source=shot["direction_source"],
         theta0_lattice_rad=shot["theta0"],
+        tracking_settings=st.summary(),
     )
     if calib is not None:
         meta["lens_k1"], meta["lens_k2"] = float(calib.dist[0]), float(calib.dist[1])
