@@ -104,52 +104,28 @@ class DoctorReport:
         return "\n".join(lines)
 
 
-def _frames_at(path, indices, fps_override):
-    from .video import iter_frames
-
-    for i in indices:
-        for fr in iter_frames(path, start=int(i), end=int(i) + 1, fps_override=fps_override):
-            yield fr
-
-
-def _rock_mask(shape, xy_px, rig, px_per_m):
-    import cv2
-
-    m = np.zeros(shape[:2], np.uint8)
-    c = np.nanmean(xy_px, axis=0)
-    r = 0.5 * rig.rock_diameter_m * px_per_m
-    cv2.circle(m, (int(round(c[0])), int(round(c[1]))), int(np.ceil(1.35 * r + 8)), 255, -1)
-    return m
-
-
-def _sample(image, rig, det):
-    """Markers, grid and its angle on one frame -> dict of what was found."""
-    from .calib import calibrate_frame
+def _sample(verdict, image, rig, det):
+    """What doctor reports of one frame, from ``track``'s verdict on it (dict)."""
     from .track.parallax import similarity_fit
 
-    out = {"markers_found": None, "grid": None, "grid_msg": "", "scale": np.nan,
+    out = {"markers_found": list(verdict.markers_found), "grid": None,
+           "grid_msg": verdict.grid_status, "status": verdict.status, "scale": np.nan,
            "outline_scale": np.nan, "rock_px": np.nan, "spacing_px": np.nan,
            "residual_px": np.nan}
-    mf = det.detect(image)
-    out["markers_found"] = mf.found.tolist()
-    mask = None
     L = det.layout_m
-    sep_m = float(np.hypot(*(L[0] - L[1])))
-    if mf.found.all():
-        sep_px = float(np.hypot(*(mf.xy_px[0] - mf.xy_px[1])))
-        out["rock_px"] = rig.rock_diameter_m * sep_px / sep_m
-        mask = _rock_mask(image.shape, mf.xy_px, rig, sep_px / sep_m)
-    try:
-        cal = calibrate_frame(image, rig, mask=mask)
-    except TrackingError as exc:
-        out["grid_msg"] = exc.message
+    xy = verdict.markers_px
+    if xy is not None:
+        sep_m = float(np.hypot(*(L[0] - L[1])))
+        out["rock_px"] = rig.rock_diameter_m * float(np.hypot(*(xy[0] - xy[1]))) / sep_m
+    cal = verdict.calibration
+    if cal is None:
         return out
     out["grid"] = True
     out["spacing_px"], out["residual_px"] = float(cal.spacing_px), float(cal.residual_px)
     out["n_threads"] = list(cal.n_threads)
     out["yaw_deg"] = cal.yaw_deg()  # image +u in the lattice
-    if mf.found.all():
-        ice = cal.image_to_ice(mf.xy_px)
+    if xy is not None:
+        ice = cal.image_to_ice(xy)
         if np.isfinite(ice).all():
             from .track.outline import outline_radius
 
@@ -159,7 +135,7 @@ def _sample(image, rig, det):
     return out
 
 
-def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
+def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES, frames=None) -> DoctorReport:
     """Check a video and a rig before tracking.
 
     Parameters
@@ -170,6 +146,12 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
         The rig (grid spacings and colours, rock, markers, camera).
     n_samples : int
         Frames to examine, spread evenly from the first to the last.
+    frames : iterable of int, optional
+        Examine these frames instead.
+
+    Each frame is judged as ``track`` judges it (:func:`curltrack.track.check.check_frames`:
+    the same steps, thresholds and messages), so a frame doctor calls lost is ``ok`` = 0
+    in ``track``'s output and the reverse (``frames`` check).
 
     Returns
     -------
@@ -177,6 +159,7 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
         ``report.ok`` is False when ``track`` cannot succeed.  Raises nothing for a bad
         video: an unreadable file is a failed ``video`` check.
     """
+    from .track.check import check_frames, frame_reader
     from .track.markers import MarkerDetector
     from .video import probe_video
 
@@ -207,22 +190,34 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
         rep.checks.append(Check("length", "fail", f"only {info.n_frames} frames",
                                 "a shot needs at least 12 measured frames; record the "
                                 "whole shot until the rock rests"))
-    idx = np.unique(np.linspace(0, info.n_frames - 1, max(1, min(n_samples, info.n_frames)))
-                    .round().astype(int))
+    if frames is None:
+        idx = np.unique(np.linspace(0, info.n_frames - 1, max(1, min(n_samples, info.n_frames)))
+                        .round().astype(int))
+    else:
+        idx = np.unique(np.asarray(list(frames), int))
+        bad = idx[(idx < 0) | (idx >= info.n_frames)]
+        if bad.size:
+            from .errors import ParameterError
+
+            raise ParameterError(f"frame {int(bad[0])} is outside the video (frames "
+                                 f"0-{info.n_frames - 1})", path=video, where="frames")
     nxt = [int(i) + 1 for i in idx[:N_PAIRS] if i + 1 < info.n_frames]
     det = MarkerDetector(rig)
+    read = frame_reader(video, info.n_frames, rig.fps)
     found = {}
     try:
-        for fr in _frames_at(video, sorted(set(idx.tolist()) | set(nxt)), rig.fps):
-            found[fr.index] = (fr.t, _sample(fr.image, rig, det))
+        for i in sorted(set(idx.tolist()) | set(nxt)):
+            verdict, = check_frames(read, [i], rig, detector=det)
+            found[i] = _sample(verdict, read(i), rig, det)
     except CurltrackError as exc:
         rep.checks.append(Check("decode", "fail", str(exc), "the file is damaged; re-export"))
         return rep
-    samples = [(int(i), found[int(i)][1]) for i in idx if int(i) in found]
+    samples = [(int(i), found[int(i)]) for i in idx if int(i) in found]
+    _frame_check(rep, samples)
     _marker_checks(rep, rig, samples)
     _grid_checks(rep, rig, samples)
     _geometry_checks(rep, rig, samples)
-    _turn_check(rep, [(found[i - 1][1], found[i][1], i - 1) for i in nxt
+    _turn_check(rep, [(found[i - 1], found[i], i - 1) for i in nxt
                       if i - 1 in found and i in found], info.fps, rig.tracking)
     return rep
 
@@ -255,6 +250,21 @@ def _turn_check(rep, pairs, fps: float, settings):
                                 "(several mm): turn the camera more slowly", values))
     else:
         rep.checks.append(Check("camera_turn", "ok", detail, values=values))
+
+
+def _frame_check(rep, samples):
+    """Each sampled frame's verdict, as ``track`` will give it (ok / why not)."""
+    lost = [(f, s["status"]) for f, s in samples if s["status"]]
+    values = {"verdicts": {str(f): s["status"] for f, s in samples},
+              "grid": {str(f): s["grid_msg"] for f, s in samples}}
+    detail = (f"{len(samples) - len(lost)}/{len(samples)} sampled frames measurable as "
+              "track measures them")
+    if lost:
+        rep.checks.append(Check("frames", "warn", detail + "; " + "; ".join(
+            f"frame {f}: {why}" for f, why in lost), "track will give these frames ok = 0 "
+            "(see the checks below for the causes)", values))
+    else:
+        rep.checks.append(Check("frames", "ok", detail, values=values))
 
 
 def _frames_text(frames) -> str:

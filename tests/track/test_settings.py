@@ -10,10 +10,8 @@ import numpy as np
 import pytest
 
 from curltrack.errors import RigError
-from curltrack.physics.shot import ShotModel
 from curltrack.rig import default_rig, load_rig
 from curltrack.settings import TrackingSettings
-from curltrack.simulate import simulate_series
 
 
 def _rig_file(tmp, tracking: str = "") -> str:
@@ -60,18 +58,10 @@ def test_settings_round_trip_and_defaults(tmp_path):
 
 
 def _clip(tmp, seed):
-    from curltrack.render import CameraConfig, RenderConfig, render_video
+    from clips import render_clip
 
-    rng = np.random.default_rng(seed)
-    rig = default_rig()
-    sim = simulate_series(ShotModel(v0=rng.uniform(0.8, 1.6),
-                                    omega0=rng.choice([-1, 1]) * rng.uniform(0.5, 2.0)), fps=30)
-    sim = replace(sim, data=sim.data.iloc[:70].reset_index(drop=True))
-    video = tmp / "clip.mp4"
-    render_video(sim, rig, video, config=RenderConfig(
-        camera=CameraConfig(motion=str(rng.choice(["ladder", "handheld"]))), width=640,
-        height=360, blur_subframes=2), seed=int(rng.integers(1 << 30)))
-    return video
+    render_clip(tmp / "clip.mp4", np.random.default_rng(seed))
+    return tmp / "clip.mp4"
 
 
 def test_a_stricter_rig_threshold_refuses_frames_the_default_accepts(tmp_path):
