@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._stats import robust_sigma
+
 __all__ = ["outline_radius", "scale_check", "OUTLINE_HEIGHT_FRACTION"]
 
 #: Height of the rock's widest circle (the striking band) as a fraction of its height.
@@ -103,7 +105,7 @@ def outline_radius(image, H, K, dist, centre, radius_m: float) -> tuple[float, n
         centre_fit = sol[:2]
         rad = float(np.sqrt(sol[2] + centre_fit @ centre_fit))
         res = np.hypot(*(p - centre_fit).T) - rad
-        mad = 1.4826 * np.median(np.abs(res[ok])) + 1e-5
+        mad = robust_sigma(res[ok], centre=0.0) + 1e-5
         ok &= np.abs(res) < 3 * mad
     return rad, centre_fit
 
@@ -205,6 +207,6 @@ def _robust_mean(v) -> tuple[float, float]:
     if v.size < 5:  # (doctor's few frames: no scatter to speak of; the floors apply)
         return float(np.median(v)), 0.0
     med = np.median(v)
-    mad = 1.4826 * np.median(np.abs(v - med)) or 1e-6
+    mad = robust_sigma(v, centre=med) or 1e-6
     v = v[np.abs(v - med) < 4 * mad]
     return float(v.mean()), float(v.std() / np.sqrt(v.size))

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._stats import robust_sigma
+
 __all__ = ["similarity_fit", "camera_centre", "focal_for_height", "HeightEstimate",
            "estimate_height", "correct_parallax", "layout_scale_mismatch",
            "ICE_REFRACTIVE_INDEX"]
@@ -167,7 +169,7 @@ def estimate_height(scales: np.ndarray, h_m: float, weights: np.ndarray | None =
     if s.size < 3:
         return None
     med = np.median(s)
-    mad = 1.4826 * np.median(np.abs(s - med)) or 1e-12
+    mad = robust_sigma(s, centre=med) or 1e-12
     keep = np.abs(s - med) < 4 * mad
     s, w = s[keep], w[keep]
     mean = float(np.sum(w * s) / np.sum(w))

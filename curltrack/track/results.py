@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__
+from .._stats import robust_sigma
 from ..errors import TrackingError
 from ..rig import Rig
 from ..series import Series, make_meta
@@ -170,7 +171,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     scale = np.array([r.scale for r in records])
     if ok.sum() >= 5:
         med = np.median(scale[ok])
-        mad = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
+        mad = robust_sigma(scale[ok], centre=med) or 1e-9
         bad = ok & (np.abs(scale - med) > st.scale_outlier_sigma * max(mad, 1e-4))
         for i in np.flatnonzero(bad):
             records[i].status = "marker layout inconsistent with the rest of the video"
@@ -255,7 +256,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                 f" and {np.degrees(off[2]):+.2f} deg (field 1 - field 0, over the shot): "
                 "included in sigma_xy / sigma_theta")
     med = np.median(scale[ok])
-    spread = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
+    spread = robust_sigma(scale[ok], centre=med) or 1e-9
     contrast = np.array([r.contrast for r in records])
     # 1 for a frame whose marker layout agrees with the video's (3 robust sigmas -> 0.6)
     quality = (np.exp(-0.5 * ((scale - med) / (3 * max(spread, 1e-4))) ** 2)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._stats import robust_sigma
 from ..settings import TrackingSettings
 
 __all__ = ["unwrap_angle", "initial_state", "choose_axes", "to_shot_frame"]
@@ -82,7 +83,7 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_point
     if n > deg + 4:
         # one robust pass: frames more than 3 robust sigmas off the fit are dropped
         res = qq - A @ coef
-        mad = 1.4826 * np.median(np.abs(res - np.median(res, axis=0)), axis=0)
+        mad = robust_sigma(res, axis=0)
         keep = np.all(np.abs(res) <= 3 * np.maximum(mad, 1e-12), axis=1)
         if keep.sum() > deg + 2:
             coef, *_ = np.linalg.lstsq(A[keep], qq[keep], rcond=None)
