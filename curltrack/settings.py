@@ -164,6 +164,12 @@ class TrackingSettings:
         0.03, "fraction", 0.0, 1.0,
         "floor of the outline's: its edge is found to ~1-2 mm of the striking band "
         "(+0.7 to +1.3 % measured on rendered set-ups with a right rig)")
+    scale_resolution_warn: float = _f(
+        0.03, "fraction", 0.001, 1.0,
+        "a grid scale the rock's rulers can check only to worse than this is warned about "
+        "in SHOT.json: every position, speed and alpha carry such an error whole; 3 % is "
+        "the scale error issue 20 asks the check to catch (without the camera height the "
+        "check resolves 4-7 %, with it ~2 %, on 4 rendered set-ups)")
     rig_height_rel_err: float = _f(
         0.05, "fraction", 0.0, 1.0,
         "uncertainty of a rig's [camera].height_m (tape-measured)")
