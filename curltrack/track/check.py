@@ -14,8 +14,8 @@ from the rig) on it:
    refusals (threads not found, a weak snap, ...) are ``track``'s.
 
 What a single frame cannot show is left to ``track``: a poor fit against the typical
-residual of the frames before, a cell index that jumped, a marker layout unlike the
-rest of the video.  A frame refused here is ``ok`` = 0 in ``track``'s output for the
+residual of the frames before, a cell index that jumped (or that the thread colours
+read on this frame alone contradict), a marker layout unlike the rest of the video.  A frame refused here is ``ok`` = 0 in ``track``'s output for the
 same reason; one accepted here is measured by ``track`` unless one of those says no.
 """
 
@@ -164,7 +164,10 @@ def check_frames(read, frames, rig: Rig, detector=None) -> list[FrameVerdict]:
             out.append(FrameVerdict(k, markers or grid, grid, found, xy))
             continue
         pose = GridTracker(cal, rig).update(image, k, mask=mask)
-        if not pose.ok:
+        # A cell index "uncertain" or "ambiguous" on one frame only says that the
+        # tracker's colour reading and the calibration's disagree: there is no tracked
+        # index to slip from; track carries the index from the frames before.
+        if not pose.ok and not pose.message.startswith("cell index"):
             grid = f"grid: {pose.message}"
             out.append(FrameVerdict(k, markers or grid, grid, found, xy, calibrated_on=on))
             continue
