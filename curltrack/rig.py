@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import RigError
+from .settings import TrackingSettings, settings_from_table
 
 G = 9.81  # m/s^2, as in the paper
 #: the rock's defaults (contract): inertia radius R (I = M R^2 / 2) and running-band
@@ -60,6 +61,8 @@ class Rig:
         Frame-rate override (frames/s).
     camera_height_m : float or None
         Lens height above the ice (m); estimated from the video when None.
+    tracking : TrackingSettings
+        The tracker's thresholds (the rig's ``[tracking]`` table over the defaults).
     """
 
     spacing_x_m: float = 0.15
@@ -75,6 +78,7 @@ class Rig:
     fps: float | None = None
     camera_height_m: float | None = None
     source: str | None = None
+    tracking: TrackingSettings = field(default_factory=TrackingSettings)
 
     def to_toml(self) -> str:
         """Serialise back to the contract's TOML."""
@@ -98,6 +102,9 @@ class Rig:
             cam.append(f"height_m = {self.camera_height_m!r}")
         if cam:
             lines += ["[camera]", *cam, ""]
+        changed = self.tracking.changed()
+        if changed:
+            lines += ["[tracking]", *(f"{k} = {v!r}" for k, v in changed.items()), ""]
         return "\n".join(lines)
 
 
@@ -173,7 +180,7 @@ def _check_keys(table: dict, section: str) -> None:
 def rig_from_dict(data: dict, source: str | None = None) -> Rig:
     """Build and validate a :class:`Rig` from a parsed TOML mapping."""
     try:
-        unknown = set(data) - set(_ALLOWED)
+        unknown = set(data) - set(_ALLOWED) - {"tracking"}
         if unknown:
             raise RigError(f"unknown section(s) {sorted(unknown)}", where="top level")
         for required in ("grid", "rock", "markers"):
@@ -210,6 +217,11 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
             raise RigError("markers must be at least 2 cm apart", where="[[markers]]")
         diameter = _number(rock, "diameter_m", "rock", required=True)
         _check_marker_layout(markers, diameter, colors)
+        try:
+            tracking = settings_from_table(data.get("tracking", {}))
+        except ValueError as exc:
+            key, msg = exc.args
+            raise RigError(msg, where="[tracking]" + (f".{key}" if key else "")) from None
         return Rig(
             spacing_x_m=_number(grid, "spacing_x_m", "grid", required=True),
             spacing_y_m=_number(grid, "spacing_y_m", "grid", required=True),
@@ -223,6 +235,7 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
             fps=_number(cam, "fps", "camera"),
             camera_height_m=_number(cam, "height_m", "camera"),
             source=source,
+            tracking=tracking,
         )
     except RigError as exc:
         if exc.path is None and source is not None:
