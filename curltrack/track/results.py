@@ -315,6 +315,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         frame_axis_source=shot["direction_source"],
         theta0_lattice_rad=shot["theta0"],
     )
+    if rig.rolling_shutter_ms:
+        meta["rolling_shutter_ms"] = float(rig.rolling_shutter_ms)
     if calib is not None:
         meta["lens_k1"], meta["lens_k2"] = float(calib.dist[0]), float(calib.dist[1])
+        if calib.lens_radius_px is not None:
+            meta["lens_radius_px"] = float(calib.lens_radius_px)
     return Series(data, meta, None)
