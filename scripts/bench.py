@@ -299,12 +299,12 @@ def markdown(doc: dict) -> str:
     return "\n".join(out)
 
 
-def write_readme(readme: Path, text: str) -> None:
-    """Replace the block between the BENCHMARKS markers of ``readme`` with ``text``."""
+def write_readme(readme: Path, text: str, marker: str = "BENCHMARKS") -> None:
+    """Replace the block between the ``marker`` comments of ``readme`` with ``text``."""
     from curltrack._atomic import write_text
 
     src = readme.read_text(encoding="utf-8")
-    begin, end = "<!-- BENCHMARKS -->", "<!-- /BENCHMARKS -->"
+    begin, end = f"<!-- {marker} -->", f"<!-- /{marker} -->"
     if begin not in src:
         raise SystemExit(f"{readme}: no '{begin}' marker")
     head, rest = src.split(begin, 1)

@@ -1,7 +1,11 @@
 """Tracking per camera kind: rendered set-ups of real cameras' artefacts, scored.
 
     python scripts/bench_cameras.py [--kinds action,phone] [--seed S] [--scale 0.5]
-                                    [--out DIR] [--json OUT.json]
+                                    [--out DIR] [--json OUT.json] [--readme README.md]
+                                    [--from OUT.json]
+
+``--readme`` writes the table between ``<!-- CAMERAS -->`` and ``<!-- /CAMERAS -->`` in
+the README (``--from`` an earlier ``--json`` instead of measuring).
 
 One set-up per camera kind, drawn by :func:`curltrack.render.sweep.draw_setup` from a
 fixed seed (``--seed``; the set-ups are the same in every run), plus ``action-strong``
@@ -34,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 KINDS = ("ladder", "handheld", "camcorder", "phone", "action", "action-strong",
          "action-fisheye")
@@ -135,6 +140,12 @@ def bench_kind(kind: str, seed: int = SEED, scale: float = 0.5, out: Path | None
     return row
 
 
+def markdown(rows) -> str:
+    """The README's camera table."""
+    head = ["| stage | set-up | result | target | |", "|---|---|---|---|---|"]
+    return "\n".join(head + markdown_rows(rows))
+
+
 def markdown_rows(rows) -> list[str]:
     """One README table row per camera kind."""
     out = []
@@ -164,14 +175,24 @@ def main(argv=None) -> int:
     ap.add_argument("--scale", type=float, default=0.5)
     ap.add_argument("--out", type=Path, default=None, help="keep the videos here")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--readme", type=Path, default=None)
+    ap.add_argument("--from", dest="from_json", type=Path, default=None)
     a = ap.parse_args(argv)
-    rows = []
-    for kind in a.kinds.split(","):
-        rows.append(bench_kind(kind, a.seed, a.scale, a.out))
-        print(json.dumps(rows[-1], default=str), file=sys.stderr, flush=True)
-    print("\n".join(markdown_rows(rows)))
-    if a.json:
+    if a.from_json:
+        rows = json.loads(a.from_json.read_text())["cameras"]
+    else:
+        rows = []
+        for kind in a.kinds.split(","):
+            rows.append(bench_kind(kind, a.seed, a.scale, a.out))
+            print(json.dumps(rows[-1], default=str), file=sys.stderr, flush=True)
+    text = markdown(rows)
+    print(text)
+    if a.json and not a.from_json:
         a.json.write_text(json.dumps({"cameras": rows}, indent=2, default=str) + "\n")
+    if a.readme:
+        from bench import write_readme
+
+        write_readme(a.readme, text, marker="CAMERAS")
     return 0
 
 
