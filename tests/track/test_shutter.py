@@ -42,3 +42,28 @@ def test_row_time_offset_spans_the_readout():
     assert row_time_offset(bottom, shape, 0.02) == pytest.approx(0.01)
     with pytest.raises(ValueError):
         sensor_row_fraction(top, shape, 45)
+
+
+def test_shutter_slide_is_the_ice_speed_times_the_readout():
+    """A camera sliding at a steady speed (drawn at random) over the ice: the slide under
+    the image during the readout is speed x readout (a cell jump is ignored)."""
+    from types import SimpleNamespace
+
+    from curltrack.calib.lens import camera_matrix
+    from curltrack.track.results import shutter_slide
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    speed, readout, fps = rng.uniform(0.2, 3.0), rng.uniform(0.005, 0.03), 30.0
+    heading = rng.uniform(0, 2 * np.pi)
+    K = camera_matrix(960, 540)
+    calib = SimpleNamespace(K=K, dist=(-0.1, 0.0))
+    recs = []
+    for k in range(20):
+        shift = speed * k / fps * np.array([np.cos(heading), np.sin(heading)])
+        if k >= 12:
+            shift = shift + (0.15, 0.0)  # the cell index re-anchored by one cell
+        H = np.array([[0.002, 0, shift[0]], [0, -0.002, shift[1]], [0, 0, 1.0]])
+        recs.append(SimpleNamespace(status="", H=H, t=k / fps, frame=k))
+    frame, slide = shutter_slide(recs, calib, readout)
+    assert slide == pytest.approx(speed * readout, rel=1e-6), seed
