@@ -119,8 +119,11 @@ def bench_kind(kind: str, seed: int = SEED, scale: float = 0.5, out: Path | None
         out = Path(tmp.name)
     out.mkdir(parents=True, exist_ok=True)
     video = out / f"{kind}.mp4"
-    truth = render_video(setup.shot, default_rig(), video, video.with_suffix(".truth.csv"),
-                         setup.config, seed=setup.seed)
+    try:
+        truth = render_video(setup.shot, default_rig(), video,
+                             video.with_suffix(".truth.csv"), setup.config, seed=setup.seed)
+    except CurltrackError as exc:  # (a set-up the renderer cannot write is no result)
+        return dict(**setup.summary, error="render: " + str(exc).splitlines()[0][:200])
     row = dict(**setup.summary, frames=truth.meta["n_frames"])
     rig = load_rig(video.with_suffix(".rig.toml"))
     readout_ms = 1e3 * float(truth.meta.get("readout_s") or 0.0)
