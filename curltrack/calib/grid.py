@@ -28,7 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import TrackingError
-from .lattice import MIN_PERIOD_PX, assign_families, fit_lattice, initial_lattice, per_line_offsets, periods_px
+from .lattice import (LENS_PARAMS, MIN_PERIOD_PX, assign_families, fit_lattice,
+                      initial_lattice, per_line_offsets, periods_px)
 from .lens import apply_h, camera_matrix, corners_px, distort, fold_radius, undistort
 from .response import ColourModel, candidate_pixels, local_contrast, thread_response
 
@@ -281,15 +282,21 @@ CALIBRATION_PIXELS = 50_000
 #: Thread pixels used by the region-growing stages of the calibration (the last stage
 #: uses all of them).
 COARSE_PIXELS = 25_000
-#: Radii (fractions of the half-diagonal) of the region-growing stages.  Steps of 0.1
-#: with the lens free from 0.3 on: with steps of 0.2 and only k1 free beyond 0.5 a
-#: wide-angle lens (k1 < -0.4 in the reference focal length, e.g. an action camera's
-#: k1 = -0.27, k2 = 0.04 at f = 660 px on 960x540) bends the outer threads by a whole
-#: cell past the stage's extrapolation and the fit lands a cell off (57 mm RMS over the
-#: view; 0.08 mm now; measured on 25 random artificial frames, k1 -0.35..-0.12).
-GROWING_RADII = (0.25, 0.35, 0.45, 0.55, 0.65, 0.75, 0.85)
-LENS_FREE = ("k1", "k2", "cx", "cy")
-LENS_FREE_FROM = 0.3
+#: Region-growing schedules of the lens fit, tried in turn: radii (fractions of the
+#: half-diagonal), the lens parameters free while growing, and from which fraction of
+#: the radius on.  Wide-angle first: steps of 0.1, k1 free from 0.3, k2 and the centre
+#: from 0.5 - with steps of 0.2 and only k1 free beyond 0.5 a wide-angle lens (k1 < -0.4
+#: in the reference focal length, e.g. an action camera's k1 = -0.27, k2 = 0.04 at
+#: f = 660 px on 960x540) bends the outer threads by a whole cell past the stage's
+#: extrapolation and the fit lands a cell off (57 mm RMS over the view; 0.08 mm now;
+#: measured on 90 random artificial frames, k1 -0.35..-0.12).  The mild schedule (as
+#: before) where the wide one fails: on a 400x224 crop the lens freed at 0.3 of a small
+#: radius diverged (k2 = -38), an error on 3 frames.
+LENS_SCHEDULES = (
+    ((0.25, 0.35, 0.45, 0.55, 0.65, 0.75, 0.85), LENS_PARAMS,
+     {"k1": 0.3, "k2": 0.5, "cx": 0.5, "cy": 0.5}),
+    ((0.3, 0.5, 0.7), ("k1",), 0.5),
+)
 #: Lens check (:func:`checked_lens_radius`): a thread pixel within this of a fitted
 #: thread is explained (px); an annulus explained less than this fraction as often as
 #: the centre ends the lens's checked radius (good fits: 0.97-1.03 in every annulus;
@@ -349,15 +356,39 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
         raise TrackingError("no grid found: no two periodic thread families in the frame")
     Hc = np.array([[A[0, 0] * f, A[0, 1] * f, A[0, 2]], [A[1, 0] * f, A[1, 1] * f, A[1, 2]],
                    [0.0, 0.0, 1.0]])
+    # the wide-angle schedule first; the mild one (as before 2026-11-24) where it fails
+    for i, schedule in enumerate(LENS_SCHEDULES):
+        try:
+            Hc_i, K_i, dist, info, lens_radius = _fit_lens(xs, wt, Hc, K, w, h, *schedule)
+            break
+        except TrackingError as exc:
+            if i == 0:
+                first = exc
+    else:
+        raise first
+    Hc, K = Hc_i, K_i
+    cal = _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info)
+    if lens_radius is not None:
+        cal.lens_radius_px = float(lens_radius)
+        cal.notes.append(f"wide-angle lens (k1 = {dist[0]:.3f}, k2 = {dist[1]:.3f}): the "
+                         f"threads confirm the lens model only within {lens_radius:.0f} px "
+                         f"of the principal point; the rock is not measured beyond")
+    return cal
+
+
+def _fit_lens(xs, wt, Hc, K, w, h, growing, free, free_from):
+    """Region growing from the spectrum's lattice ``Hc`` with the lens parameters
+    ``free`` (from ``free_from`` of the radius on), then the final fit on every pixel
+    and the lens check: (Hc, K, dist, info, checked radius), or TrackingError."""
     half_diag = np.hypot(w, h) / 2
-    radii = [v * half_diag for v in GROWING_RADII] + [None]
+    radii = [v * half_diag for v in growing] + [None]
     dist = (0.0, 0.0)
     # The region growing only has to land in the right basin: a fixed subsample of the
     # thread pixels does that at a fraction of the cost; the final fit uses them all.
     sub = np.sort(np.random.default_rng(0).permutation(len(xs))[:COARSE_PIXELS])
     for _attempt in range(3):
-        Hc, K, dist, info = fit_lattice(xs[sub], wt[sub], Hc, K, dist, free=LENS_FREE,
-                                        radii=radii, band_px=3.0, free_from=LENS_FREE_FROM)
+        Hc, K, dist, info = fit_lattice(xs[sub], wt[sub], Hc, K, dist, free=free,
+                                        radii=radii, band_px=3.0, free_from=free_from)
         halved = False
         for fam in (0, 1):
             if _check_period(xs[sub], wt[sub], Hc, K, dist, fam):
@@ -366,7 +397,7 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
         if not halved:
             break
         radii = [0.5 * half_diag, None]
-    Hc, K, dist, info = fit_lattice(xs, wt, Hc, K, dist, free=LENS_FREE,
+    Hc, K, dist, info = fit_lattice(xs, wt, Hc, K, dist, free=LENS_PARAMS,
                                     radii=(None,), band_px=2.5, iterations=4)
     if not info or info["lines_a"] < 3 or info["lines_b"] < 3:
         raise TrackingError("no grid found: fewer than 3 threads in a family could be fitted")
@@ -378,13 +409,7 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
             f"explains the threads only within {lens_radius:.0f} px of the image centre "
             f"({lens_radius / half_diag:.0%} of the half-diagonal); a lens this wide (a "
             f"fisheye?) is not modelled")
-    cal = _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info)
-    if lens_radius is not None:
-        cal.lens_radius_px = float(lens_radius)
-        cal.notes.append(f"wide-angle lens (k1 = {dist[0]:.3f}, k2 = {dist[1]:.3f}): the "
-                         f"threads confirm the lens model only within {lens_radius:.0f} px "
-                         f"of the principal point; the rock is not measured beyond")
-    return cal
+    return Hc, K, dist, info, lens_radius
 
 
 def checked_lens_radius(xs, wt, Hc, K, dist, width: int, height: int):

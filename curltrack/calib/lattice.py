@@ -304,7 +304,7 @@ def _rows(Hc, q, xs, ab, fam_a, fam_b, ia, ib, pa, pb, K, lens, free_idx=()):
 
 
 def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None,),
-                band_px=3.0, iterations: int = 4, free_from: float = 0.5):
+                band_px=3.0, iterations: int = 4, free_from=0.5):
     """Refine the lattice homography (and optionally the lens) by robust Gauss-Newton.
 
     Parameters
@@ -327,8 +327,8 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
         once the region reaches ``free_from`` of the farthest pixel's radius.
     band_px : float or (float, float)
         Half-width (px) of the band around a thread whose pixels belong to it (per family).
-    free_from : float
-        See ``radii``.
+    free_from : float or dict
+        See ``radii``; a dict gives it per lens parameter (name -> fraction).
 
     Returns
     -------
@@ -350,7 +350,9 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
         # (the pixels of this stage's region only: the inner stages are small)
         sel = slice(None) if radius is None else np.flatnonzero(rad <= radius)
         xs_s, w_s, q_s = xs[sel], w[sel], q[sel]
-        stage_free = free_idx if radius is None or radius > free_from * rad.max() else []
+        stage_free = [j for j in free_idx if radius is None or radius > (
+            free_from.get(LENS_PARAMS[j], 0.5) if isinstance(free_from, dict) else free_from)
+            * rad.max()]
         for it in range(iterations):
             pa, pb = periods_px(Hc, f)
             ab = apply_h(Hc, q_s)
