@@ -172,10 +172,13 @@ def markdown_rows(rows) -> list[str]:
     out = []
     for r in rows:
         what = (f"{r['kind']}: {r['size']} {r['fps']:g} fps {r['motion']}, {r['lens']}, "
-                f"{r['scan']}, RS {r['readout_ms']:g} ms, {r['codec']}"
+                f"{r['scan']}" + (f", RS {r['readout_ms']:g} ms" if r["readout_ms"] else "")
+                + f", {r['codec']}"
                 + (f", {r['artefacts']}" if r.get("artefacts", "-") != "-" else ""))
         if "error" in r:
-            out.append(f"| track camera | {what} | error: {r['error']} | | ✗ |")
+            # (without the video's temporary path)
+            msg = r["error"].split(".mp4: ", 1)[-1]
+            out.append(f"| track camera | {what} | error: {msg} | | ✗ |")
             continue
         rs = (f"; without rolling_shutter_ms {r['rs_off']:.2f} mm" if r.get("rs_off")
               else "")
