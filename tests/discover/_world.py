@@ -11,7 +11,11 @@ contract series.  Families (``FAMILIES``), each with its strength's meaning:
 * ``spin_coupling`` -- d|omega|/dt multiplied by 1 + c v (c = +-strength, s/m);
 * ``translation_coupling`` -- dv/dt multiplied by 1 + c |omega| (c = +-strength, s/rad);
 * ``curl_spin_dependence`` -- a_T multiplied by (|omega| / omega_ref)^p (p = strength;
-  the spin is made to stop before the translation, so the curl fades with it).
+  the spin is made to stop before the translation, so the curl fades with it);
+* ``friction_law`` -- the translational friction law bends below a knee speed u_k
+  (0.25-0.8 m/s): its log-log slope changes by -dphi (dphi = +-strength) from
+  phi above the knee, written here as exp of half dphi times the log-ratio of
+  (v^2 + u_k^2) and (v^2 + 0.02^2).
 """
 
 from __future__ import annotations
@@ -32,11 +36,12 @@ NOISE_M = 0.002
 NOISE_RAD = float(np.radians(0.3))
 
 FAMILIES = ("friction_field", "spin_coupling", "translation_coupling",
-            "curl_spin_dependence")
+            "curl_spin_dependence", "friction_law")
 
 #: the truth key of each family that the extension's params must recover
 KEYS = {"friction_field": ("amplitude", "wavelength_m"), "spin_coupling": ("c_s_per_m",),
-        "translation_coupling": ("c_s_per_rad",), "curl_spin_dependence": ("p",)}
+        "translation_coupling": ("c_s_per_rad",), "curl_spin_dependence": ("p",),
+        "friction_law": ("dphi_low",)}
 
 
 def integrate(v0, omega0, phi_y, alpha_y, phi_t, alpha_t, a_T, hidden=None, fps=30.0,
@@ -191,6 +196,11 @@ def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None,
     elif family == "curl_spin_dependence":
         ratio = float(rng.uniform(0.55, 0.8))
         truth["p"] = strength
+    elif family == "friction_law":
+        d, u_k = sign * strength, float(rng.uniform(0.25, 0.8))
+        hidden = {"fric": lambda y, v, w: math.exp(
+            0.5 * d * (math.log(v * v + u_k * u_k) - math.log(v * v + 0.02 ** 2)))}
+        truth.update(dphi_low=d, u_knee_m_per_s=u_k, phi_y=ice["phi_y"], alpha_y=ice["alpha_y"])
     elif family != "none":
         raise ValueError(family)
     shots = []

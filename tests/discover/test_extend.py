@@ -25,6 +25,7 @@ MODERATE = {
     "spin_coupling": (0.1, 0.2),             # |c| s/m
     "translation_coupling": (0.05, 0.1),     # |c| s/rad
     "curl_spin_dependence": (0.8, 1.2),      # p
+    "friction_law": (0.1, 0.2),              # |dphi_low|, knee 0.25-0.8 m/s
 }
 
 
@@ -44,6 +45,7 @@ def test_simulator_terms_agree_with_independent_integrator(family):
     a_th = _alpha_theta(v0, w0, ice, float(rng.uniform(0.6, 1.0)))
     lam, a, b = float(rng.uniform(1.0, 5.0)), float(rng.uniform(-0.2, 0.2)), float(rng.uniform(-0.2, 0.2))
     c, p, w_ref = float(rng.uniform(-0.3, 0.5)), float(rng.uniform(-1.5, 2.0)), float(rng.uniform(0.5, 2))
+    d, u_k = float(rng.uniform(-0.8, 0.8)), float(rng.uniform(0.1, 1.0))
     field = lambda y, v, w: 1 + a * math.cos(2 * math.pi * y / lam) + b * math.sin(2 * math.pi * y / lam)  # noqa: E731
     hidden, eff = {
         "friction_field": ({"fric": field, "spin": field},
@@ -53,6 +55,9 @@ def test_simulator_terms_agree_with_independent_integrator(family):
                                  Effect("translation_coupling", {"c_s_per_rad": c})),
         "curl_spin_dependence": ({"curl": lambda v, w: ((w * w + 0.05**2) / w_ref**2) ** (p / 2)},
                                  Effect("curl_spin_dependence", {"p": p, "omega_ref_rad_per_s": w_ref})),
+        "friction_law": ({"fric": lambda y, v, w: (1 + u_k**2 / (v * v + 1e-300)) ** (d / 2)
+                          * (1 + 0.02**2 / (v * v + 1e-300)) ** (-d / 2)},
+                         Effect("friction_law", {"dphi_low": d, "u_knee_m_per_s": u_k})),
     }[family]
     t, x, y, th, t_tr, t_rot = integrate(v0, w0, ice["phi_y"], ice["alpha_y"], ice["phi_t"],
                                          a_th, ice["a_T"], hidden)
@@ -88,7 +93,8 @@ def _check_case(family, seed, n_boot=300):
     keys = {"friction_field": [("amplitude", "amplitude"), ("wavelength_m", "wavelength_m")],
             "spin_coupling": [("c_s_per_m", "c_s_per_m")],
             "translation_coupling": [("c_s_per_rad", "c_s_per_rad")],
-            "curl_spin_dependence": [("p", "p")]}[family]
+            "curl_spin_dependence": [("p", "p")],
+            "friction_law": [("dphi_low", "dphi_low")]}[family]
     nums = _numbers(ext["summary"])
     for key, tkey in keys:
         est, err = d[key], d[f"{key}_err"]
