@@ -62,7 +62,7 @@ def _band(func, theta, cov, x):
     return f0, np.sqrt(np.maximum(var, 0.0))
 
 
-def _sub_cov(fit, names, cov=None) -> np.ndarray:
+def _cov_of(fit, names, cov=None) -> np.ndarray:
     """Covariance of ``names`` (0 for a parameter held fixed)."""
     cov = fit.cov if cov is None else cov
     idx = [fit.free.index(n) if n in fit.free else -1 for n in names]
@@ -80,7 +80,7 @@ def _friction_law(fit, p, translating, cov):
     j = next(i for i, s in enumerate(translating))
     alpha = "alpha_y" if "alpha_y" in fit.free else f"alpha_y[{j}]"
     keys = [alpha, "phi_y", "dphi_low", "u_knee_m_per_s"]
-    c = _sub_cov(fit, keys, cov)
+    c = _cov_of(fit, keys, cov)
     th = np.array([fit.values[k] for k in keys])
 
     def mu(t, u):
@@ -123,11 +123,13 @@ def describe(sc, shots) -> dict:
     """The REPORT.json ``extension`` object's physics: terms, summary, function, band."""
     fit, p, name = sc.fit, sc.params, sc.name
     translating = [s for s in shots if s.translates]
+    pcov = getattr(sc, "cov_profile", None)   # profile-likelihood errors (.profile)
+
     if name == "friction_law":
-        x, vals, err, summary, derived, fx = _friction_law(fit, p, translating, None)
+        x, vals, err, summary, derived, fx = _friction_law(fit, p, translating, pcov)
     elif name == "friction_field":
         keys = ["amp_cos", "amp_sin", "wavelength_m"]
-        cov = _sub_cov(fit, keys)
+        cov = _cov_of(fit, keys, pcov)
         th = np.array([p[k] for k in keys])
 
         def func(t, y):
@@ -151,7 +153,7 @@ def describe(sc, shots) -> dict:
         fx = {"x_name": "y_m", "quantity": "friction multiplier alpha(y) / alpha"}
     elif name in ("spin_coupling", "translation_coupling"):
         key = "c_s_per_m" if name == "spin_coupling" else "c_s_per_rad"
-        cov = _sub_cov(fit, [key])
+        cov = _cov_of(fit, [key], pcov)
         th = np.array([p[key]])
         c, ce = float(th[0]), float(np.sqrt(cov[0, 0]))
         if name == "spin_coupling":
@@ -169,7 +171,7 @@ def describe(sc, shots) -> dict:
         vals, err = _band(lambda t, xx: 1.0 + t[0] * xx, th, cov, x)
         derived = {key: c, f"{key}_err": ce}
     elif name == "curl_spin_dependence":
-        cov = _sub_cov(fit, ["p"])
+        cov = _cov_of(fit, ["p"], pcov)
         th = np.array([p["p"]])
         w_ref = omega_ref(shots)
         w_min = 0.05
@@ -229,7 +231,9 @@ def extension_object(sc, finding, shots, h0, h0_loso) -> dict:
                heldout_rmse_before=h0["scalar"], heldout_rmse_after=sc.heldout["time"]["scalar"],
                loso_rmse_before=h0_loso["scalar"] if h0_loso else None,
                loso_rmse_after=sc.heldout["shot"]["scalar"] if "shot" in sc.heldout else None,
-               structure_after=finding.get("structure_after"))
+               structure_after=finding.get("structure_after"),
+               errors=("profile likelihood" if sc.profile else "covariance"),
+               profile=sc.profile)
     return out
 
 

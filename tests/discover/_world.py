@@ -216,3 +216,53 @@ def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None,
                                              ice["phi_t"], a_th, ice["a_T"], hidden)
         shots.append(as_series(t, x, y, th, t_tr, t_rot, rng, noise=noise))
     return shots, truth
+
+
+def true_mu(truth, u):
+    """The hidden friction law mu(u) of a ``friction_law`` world (m/s in, no unit out)."""
+    u = np.asarray(u, dtype=float)
+    d, u_k = truth["dphi_low"], truth["u_knee_m_per_s"]
+    return truth["alpha_y"] * u ** truth["phi_y"] * np.exp(
+        0.5 * d * (np.log(u * u + u_k * u_k) - np.log(u * u + 0.02 ** 2)))
+
+
+def curve_pulls(ext, truth, lo=0.15, hi_frac=0.8):
+    """(fitted - true mu(u)) / its 1-sigma band over lo <= u <= hi_frac * u_max, where a
+    draw's data weigh the law (below ~0.15 m/s a draw spends its last second)."""
+    f = ext["function"]
+    u = np.asarray(f["x"])
+    sel = (u >= lo) & (u <= hi_frac * u.max())
+    val = np.asarray(f["value"])[sel]
+    band = 0.5 * (np.asarray(f["band_hi"]) - np.asarray(f["band_lo"]))[sel]
+    return (val - true_mu(truth, u[sel])) / band
+
+
+def make_peer_law_world(rng, noise: str = "white", n_shots: int = 2):
+    """Draws under a friction law written as a peer simulator would: a constant plus
+    a term that falls with speed, mu(u) = mu_c + mu_1 (u / 1 m/s)^(-1/2) (not a power
+    law, and not the bent power law of discovery's ``friction_law`` either).
+
+    Shots of one session with a slow and a fast spin: in a single draw whose spin ends
+    with its slide |omega| falls with v, and a translation decay scaled by 1 + c |omega|
+    is a friction law in disguise (both explained one peer-law draw alike, delta-BIC
+    1161 and 1154); spins that differ at the same speed tell them apart.
+
+    Returns (shots, truth) with ``truth["mu"]`` the law as a function of u (m/s).
+    """
+    ice = draw_ice(rng)
+    mu1 = float(rng.uniform(0.006, 0.01))
+    frac = float(rng.uniform(0.3, 0.7))     # share of the constant at 1 m/s
+    mu_c, mu_1 = frac * mu1, (1.0 - frac) * mu1
+    law = lambda u: mu_c + mu_1 / np.sqrt(np.maximum(u, 1e-9))  # noqa: E731
+    # the integrator's law is alpha_y v^phi_y times the hidden factor: divide it out
+    fric = lambda y, v, w: float(law(v)) / (ice["alpha_y"] * max(v, 1e-9) ** ice["phi_y"])  # noqa: E731
+    shots = []
+    for i in range(n_shots):
+        v0 = float(rng.uniform(1.6, 2.2))
+        spin = (0.6, 1.2) if i % 2 == 0 else (2.4, 3.5)
+        omega0 = float(rng.choice([-1, 1]) * rng.uniform(*spin))
+        a_th = _alpha_theta(v0, omega0, ice)
+        t, x, y, th, t_tr, t_rot = integrate(v0, omega0, ice["phi_y"], ice["alpha_y"],
+                                             ice["phi_t"], a_th, ice["a_T"], {"fric": fric})
+        shots.append(as_series(t, x, y, th, t_tr, t_rot, rng, noise=noise))
+    return shots, {"family": "friction_law", "mu_c": mu_c, "mu_1": mu_1, "mu": law}
