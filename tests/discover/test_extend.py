@@ -15,7 +15,7 @@ import re
 import numpy as np
 import pytest
 
-from discover._world import (FAMILIES, _alpha_theta, curve_pulls, draw_ice, integrate,
+from discover._world import (FAMILIES, G, V_STOP, _alpha_theta, curve_pulls, draw_ice, integrate,
                              make_peer_law_world, make_world)
 from curltrack.discover import discover
 from curltrack.physics import Effect, ShotModel, simulate
@@ -68,8 +68,13 @@ def test_simulator_terms_agree_with_independent_integrator(family):
     err = max(np.abs(tr.x - x).max(), np.abs(tr.y - y).max(), np.abs(tr.theta - th).max())
     assert err < 5e-5, (seed, family, err)
     # stop times to 1e-4 s, or 5e-6 of a long slide's duration (its final approach is flat:
-    # 32 s slides differed by 1.4e-4 s between the two integrators' stop events)
-    tol_tr, tol_rot = max(1e-4, 5e-6 * t_tr), max(1e-4, 5e-6 * t_rot)
+    # 32 s slides differed by 1.4e-4 s between the two integrators' stop events), or twice
+    # the time the test's integrator leaves out by stopping at V_STOP (a friction law
+    # that falls towards low speed decelerates the last 1e-5 m/s slowly: 8e-4 s)
+    fric = hidden.get("fric", lambda *a: 1.0)
+    a_stop = ice["alpha_y"] * G * V_STOP ** ice["phi_y"] * fric(0.0, V_STOP, 0.0)
+    tol_tr = max(1e-4, 5e-6 * t_tr, 2.0 * V_STOP / a_stop)
+    tol_rot = max(1e-4, 5e-6 * t_rot)
     assert (abs(tr.t_stop_translation - t_tr) < tol_tr
             and abs(tr.t_stop_rotation - t_rot) < tol_rot), seed
 
