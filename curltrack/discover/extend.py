@@ -216,6 +216,13 @@ def choose(supported, scores, margin: float):
             continue
         if o.extension and o.delta_bic > best.delta_bic - margin:
             return None      # two extensions explain it alike: not one description
+        if o.extension and o.chi2_gain is not None and best.chi2_gain is not None and \
+                o.chi2_gain >= best.chi2_gain and o.delta_bic > max(o.threshold["threshold"], 0.0):
+            # fits at least as well: only the parameter count would decide.  On one draw
+            # the spin falls with the speed, so a translation coupling 1 + c |omega| is a
+            # friction law in disguise (a bent law: chi-square gain 634 against the
+            # coupling's 633, delta-BIC 618 and 625)
+            return None
         if not o.extension and o.delta_bic > best.delta_bic - margin and \
                 o.delta_bic > max(o.threshold["threshold"], 0.0):
             return None      # a named effect explains it about as well: it keeps the name

@@ -166,9 +166,17 @@ def _alpha_theta(v0, omega0, ice, ratio=1.0):
     return k_t * R ** 2 / (2.0 * G * R_BAND ** (1.0 + phi_t))
 
 
-def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None,
+#: families whose worlds are sessions by default: (shots, spin ranges (rad/s) in turn).
+#: On one draw the spin falls with the speed, so a friction law and a translation decay
+#: scaled by 1 + c |omega| are aliases; a slow and a fast spin tell them apart.
+SESSIONS = {"friction_law": (2, ((0.6, 1.2), (2.4, 3.5)))}
+SPINS = ((1.2, 2.5),)
+
+
+def make_world(family: str, strength: float, rng, n_shots: int | None = None, ice=None,
                noise: str = "white"):
-    """Shots on one sheet with a hidden ``family`` term of the given strength.
+    """Shots on one sheet with a hidden ``family`` term of the given strength
+    (``n_shots`` default: :data:`SESSIONS`, else one).
 
     Returns
     -------
@@ -204,9 +212,10 @@ def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None,
     elif family != "none":
         raise ValueError(family)
     shots = []
-    for i in range(n_shots):
+    default_n, spins = SESSIONS.get(family, (1, SPINS))
+    for i in range(default_n if n_shots is None else n_shots):
         v0 = float(rng.uniform(1.6, 2.2))
-        omega0 = float(rng.choice([-1, 1]) * rng.uniform(1.2, 2.5))
+        omega0 = float(rng.choice([-1, 1]) * rng.uniform(*spins[i % len(spins)]))
         a_th = _alpha_theta(v0, omega0, ice, ratio)
         if family == "curl_spin_dependence":
             w_ref, p = abs(omega0), strength
@@ -242,10 +251,8 @@ def make_peer_law_world(rng, noise: str = "white", n_shots: int = 2):
     a term that falls with speed, mu(u) = mu_c + mu_1 (u / 1 m/s)^(-1/2) (not a power
     law, and not the bent power law of discovery's ``friction_law`` either).
 
-    Shots of one session with a slow and a fast spin: in a single draw whose spin ends
-    with its slide |omega| falls with v, and a translation decay scaled by 1 + c |omega|
-    is a friction law in disguise (both explained one peer-law draw alike, delta-BIC
-    1161 and 1154); spins that differ at the same speed tell them apart.
+    Shots of one session with a slow and a fast spin (:data:`SESSIONS`): on one draw
+    the two aliases explained a peer-law draw alike, delta-BIC 1161 and 1154.
 
     Returns (shots, truth) with ``truth["mu"]`` the law as a function of u (m/s).
     """
@@ -257,10 +264,10 @@ def make_peer_law_world(rng, noise: str = "white", n_shots: int = 2):
     # the integrator's law is alpha_y v^phi_y times the hidden factor: divide it out
     fric = lambda y, v, w: float(law(v)) / (ice["alpha_y"] * max(v, 1e-9) ** ice["phi_y"])  # noqa: E731
     shots = []
+    spins = SESSIONS["friction_law"][1]
     for i in range(n_shots):
         v0 = float(rng.uniform(1.6, 2.2))
-        spin = (0.6, 1.2) if i % 2 == 0 else (2.4, 3.5)
-        omega0 = float(rng.choice([-1, 1]) * rng.uniform(*spin))
+        omega0 = float(rng.choice([-1, 1]) * rng.uniform(*spins[i % len(spins)]))
         a_th = _alpha_theta(v0, omega0, ice)
         t, x, y, th, t_tr, t_rot = integrate(v0, omega0, ice["phi_y"], ice["alpha_y"],
                                              ice["phi_t"], a_th, ice["a_T"], {"fric": fric})
