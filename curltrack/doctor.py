@@ -55,7 +55,7 @@ class Check:
     ----------
     name : str
         ``video``, ``fps``, ``length``, ``decode``, ``markers``, ``grid``, ``rock_size``,
-        ``camera_height``, ``camera_turn``.
+        ``camera_height``, ``grid_scale``, ``camera_turn``.
     status : str
         ``"ok"``, ``"warn"`` or ``"fail"`` (fatal: ``track`` cannot succeed).
     detail : str
@@ -353,6 +353,7 @@ def _geometry_checks(rep, rig, samples):
                                 "(see the line above for what to check)",
                                 {"layout_scale": s}))
         return
+    _scale_resolution_check(rep, rig, samples, depth)
     h = rig.rock_height_m + rig.grid_depth_m / ICE_REFRACTIVE_INDEX
     H = h * s / (s - 1.0) if s > 1.0 else np.inf
     lo, hi = HEIGHT_RANGE_M
@@ -373,3 +374,25 @@ def _geometry_checks(rep, rig, samples):
     else:
         rep.checks.append(Check("camera_height", "ok", f"about {H:.2f} m from the "
                                 f"parallax over {scales.size} frame(s)", values=values))
+
+
+def _scale_resolution_check(rep, rig, samples, depth: float) -> None:
+    """How finely the rock's rulers check the grid's scale on these frames (what
+    ``track`` records as ``scale_check_resolution``; it warns on the same limit)."""
+    from .track.outline import scale_check_resolution
+    from .track.results import SCALE_RESOLUTION_WARN
+
+    res = scale_check_resolution([x["scale"] for _, x in samples],
+                                 [x["outline_scale"] for _, x in samples], rig,
+                                 rig.rock_height_m + depth, depth)
+    text = (f"the grid's scale is checked against the rock to +-{100 * res:.1f} %"
+            if np.isfinite(res) else "the grid's scale cannot be checked against the rock")
+    if res <= SCALE_RESOLUTION_WARN:
+        rep.checks.append(Check("grid_scale", "ok", text, values={"resolution": res}))
+        return
+    rep.checks.append(Check(
+        "grid_scale", "warn", text,
+        "a grid spacing off by less is not caught (every position and speed would be off "
+        "by as much): measure the thread spacing over several cells"
+        + ("" if rig.camera_height_m is not None else " and give [camera].height_m"),
+        {"resolution": res if np.isfinite(res) else None}))

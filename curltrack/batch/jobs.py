@@ -43,6 +43,9 @@ class BatchOptions:
         their key is unchanged).  Never part of the key.
     plots : bool
         Also write ``FIT.png`` per shot.
+    frame_progress : bool
+        Workers report the frames they have tracked (for the client's progress bar;
+        :data:`curltrack.batch.pipeline.FRAMES_TOPIC`).  Never part of the key.
     """
 
     fixed_stop: bool = False
@@ -50,6 +53,7 @@ class BatchOptions:
     split: bool = False
     retry_failed: bool = False
     plots: bool = False
+    frame_progress: bool = False
 
     def key_items(self) -> dict:
         """The options that change a shot's outputs."""

@@ -7,6 +7,7 @@ commands one by one.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,35 @@ def warm_up() -> None:
         importlib.import_module(name)
 
 
+#: The Dask event topic on which workers report frames tracked:
+#: ``{"shot": shot_id, "done": frames, "total": frames}``.
+FRAMES_TOPIC = "curltrack-frames"
+#: Shortest interval between two reports of one shot (s): a few a second per shot.
+FRAMES_EVERY_S = 0.5
+
+
+def frame_events(shot_id: str):
+    """A ``progress(done, total)`` for :func:`~curltrack.track.track_video` that logs
+    :data:`FRAMES_TOPIC` events from this Dask worker (None outside a worker)."""
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):
+        return None
+    last = -np.inf
+
+    def report(done: int, total: int) -> None:
+        nonlocal last
+        now = time.monotonic()
+        if done < total and now - last < FRAMES_EVERY_S:
+            return
+        last = now
+        worker.log_event(FRAMES_TOPIC, {"shot": shot_id, "done": int(done),
+                                        "total": int(total)})
+    return report
+
+
 def track_and_fit(job: ShotJob, rig, shot_dir, options: BatchOptions) -> dict:
     """Track ``job.video``, fit it (and optionally discover), write the per-shot files.
 
@@ -50,7 +80,9 @@ def track_and_fit(job: ShotJob, rig, shot_dir, options: BatchOptions) -> dict:
     from ..track import track_video
 
     shot_dir = Path(shot_dir)
-    series = track_video(job.video, rig, start_frame=job.start_frame, end_frame=job.end_frame)
+    report = frame_events(job.shot_id) if options.frame_progress else None
+    series = track_video(job.video, rig, start_frame=job.start_frame, end_frame=job.end_frame,
+                         progress=report or False)
     shot_csv = shot_dir / "SHOT.csv"
     write_series(shot_csv, series)
     series = read_series(shot_csv)

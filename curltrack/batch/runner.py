@@ -16,7 +16,7 @@ import logging
 import os
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..errors import CurltrackError, InputError
@@ -269,6 +269,8 @@ def _run(client, jobs: list[ShotJob], rig: Rig, outdir: Path, options: BatchOpti
     from distributed import as_completed
 
     rig_text = rig.to_toml()
+    if progress and not options.frame_progress:
+        options = replace(options, frame_progress=True)
     pending = {}
     if pipeline is None:  # import the stack on every worker at once, not shot by shot
         from .pipeline import warm_up
@@ -298,7 +300,7 @@ def _run(client, jobs: list[ShotJob], rig: Rig, outdir: Path, options: BatchOpti
     bar = _Progress(len(jobs), enabled=progress)  # with split: grows as videos are split
     queue = as_completed(first)
     try:
-        with bar:
+        with bar, _frame_events(client, bar):
             for fut in queue:
                 kind, job = pending.pop(fut)
                 try:
@@ -322,6 +324,22 @@ def _run(client, jobs: list[ShotJob], rig: Rig, outdir: Path, options: BatchOpti
     return records
 
 
+@contextlib.contextmanager
+def _frame_events(client, bar):
+    """Feed the workers' frame reports (:data:`~.pipeline.FRAMES_TOPIC`) to ``bar``."""
+    if not bar.enabled:
+        yield
+        return
+    from .pipeline import FRAMES_TOPIC
+
+    client.subscribe_topic(FRAMES_TOPIC, bar.frames)
+    try:
+        yield
+    finally:
+        with contextlib.suppress(Exception):
+            client.unsubscribe_topic(FRAMES_TOPIC)
+
+
 def _video_bytes(job: ShotJob) -> int:
     try:
         return os.path.getsize(job.video)
@@ -340,19 +358,35 @@ def _crash_record(job: ShotJob, exc, message: str | None = None) -> dict:
 
 
 class _Progress:
-    """A rich progress bar on stderr counting done / skipped / failed (no-op if disabled)."""
+    """Rich progress bars on stderr (no-op if disabled): shots done / skipped / failed,
+    and the frames tracked so far in the shots being worked on."""
 
     def __init__(self, total: int, enabled: bool):
         self.enabled, self.counts = enabled, {"done": 0, "skipped": 0, "failed": 0}
+        self.shot_frames: dict[str, tuple[int, int]] = {}  # shot id -> (done, total)
         if enabled:
             from rich.console import Console
             from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
                                        TimeElapsedColumn, TimeRemainingColumn)
 
-            self.bar = Progress(TextColumn("batch"), BarColumn(), MofNCompleteColumn(),
-                                TextColumn("{task.description}"), TimeElapsedColumn(),
-                                TimeRemainingColumn(), console=Console(stderr=True))
-            self.task = self.bar.add_task(self._text(), total=total)
+            self.bar = Progress(TextColumn("{task.fields[label]}"), BarColumn(),
+                                MofNCompleteColumn(), TextColumn("{task.description}"),
+                                TimeElapsedColumn(), TimeRemainingColumn(),
+                                console=Console(stderr=True))
+            self.task = self.bar.add_task(self._text(), total=total, label="batch")
+            self.frame_task = self.bar.add_task("in the shots started", total=None,
+                                                label="frames", visible=False)
+
+    def frames(self, event) -> None:
+        """A worker's report ``(timestamp, {"shot", "done", "total"})``."""
+        msg = event[1]
+        self.shot_frames[msg["shot"]] = (msg["done"], msg["total"])
+        self._show_frames()
+
+    def _show_frames(self) -> None:
+        done = sum(d for d, _ in self.shot_frames.values())
+        total = sum(t for _, t in self.shot_frames.values())
+        self.bar.update(self.frame_task, completed=done, total=total, visible=True)
 
     def _text(self) -> str:
         c = self.counts
@@ -367,6 +401,10 @@ class _Progress:
         self.counts[outcome] = self.counts.get(outcome, 0) + 1
         if self.enabled:
             self.bar.update(self.task, advance=1, description=self._text())
+            shot = record.get("shot", {}).get("shot_id")
+            if shot in self.shot_frames:  # (a failed shot stops short: count it whole)
+                self.shot_frames[shot] = (self.shot_frames[shot][1],) * 2
+                self._show_frames()
 
     def __enter__(self):
         if self.enabled:

@@ -306,7 +306,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
 
 def track_video(video_path, rig: Rig, start_frame: int | None = None,
                 end_frame: int | None = None, exclude_frames=(), overlay_path=None,
-                progress: bool = False, debug_frames=(), debug_dir=None, corrections=None):
+                progress=False, debug_frames=(), debug_dir=None, corrections=None):
     """Track a shot video: x(t), y(t), theta(t) in the shot frame, with stop times.
 
     Parameters
@@ -323,8 +323,10 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         Frames to skip (kept as ``ok`` = 0 rows).
     overlay_path : path, optional
         Write an annotated video there (second pass over the video).
-    progress : bool
-        Show a progress bar (rich) on stderr.
+    progress : bool or callable
+        Show a progress bar (rich) on stderr; or a callable ``progress(done, total)``
+        told the frames measured so far after each frame of the tracking pass (how
+        ``run_batch`` counts frames on its workers).
     debug_frames, debug_dir : iterable of int, path, optional
         Write a PNG of what was found on each of these frames into ``debug_dir``.
     corrections : path, optional
@@ -403,12 +405,15 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         cv2.setNumThreads(n_threads)
     from ..progress import progress_bar
 
+    report = progress if callable(progress) else None
+    progress = bool(progress) and report is None
     try:
         with threadpool_limits(limits=max(n_threads, 1), user_api="blas"), \
                 progress_bar("tracking", total, enabled=progress) as advance:
-            records, loop_info = track_frames(frames, rig, path=video_path,
-                                              progress=advance if progress else None,
-                                              outline_every=max(2, total // OUTLINE_FRAMES))
+            records, loop_info = track_frames(
+                frames, rig, path=video_path,
+                progress=_counting(advance, report, total) if progress or report else None,
+                outline_every=max(2, total // OUTLINE_FRAMES))
     finally:
         cv2.setNumThreads(threads_before)
     blank = _blank_lead(records) if start_frame is None else 0
@@ -455,6 +460,19 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         write_debug_frames(video_path, debug_dir, debug_frames, records, series,
                            loop_info["calib"], rig)
     return series
+
+
+def _counting(advance, report, total: int):
+    """``advance`` (a progress bar's) that also tells ``report(done, total)``."""
+    done = 0
+
+    def step(n: int = 1) -> None:
+        nonlocal done
+        done += n
+        advance(n)
+        if report is not None:
+            report(done, total)
+    return step
 
 
 def _blank_lead(records) -> int:

@@ -211,3 +211,39 @@ def test_batch_discover_writes_reports(folder, tmp_path):
     assert report["verdict"] == "none"
     table = pd.read_parquet(out / "campaign.parquet")
     assert table["discover_verdict"].tolist() == ["none"]
+
+
+def test_batch_progress_counts_frames_from_the_workers(folder, tmp_path, monkeypatch):
+    """With progress, the workers report frames tracked; the bar ends at every frame of
+    every tracked shot (the videos' own frame counts)."""
+    from curltrack.batch import run_batch, runner
+    from curltrack.video import probe_video
+
+    videos = tmp_path / "videos"
+    videos.mkdir()
+    for name in ("shot0.mp4", "shot1.mp4"):
+        shutil.copy(folder / "videos" / name, videos / name)
+    events = []
+    real = runner._Progress.frames
+
+    def spy(self, event):
+        events.append(event[1])
+        real(self, event)
+    monkeypatch.setattr(runner._Progress, "frames", spy)
+    bars = []
+    real_init = runner._Progress.__init__
+
+    def keep(self, *a, **k):
+        real_init(self, *a, **k)
+        bars.append(self)
+    monkeypatch.setattr(runner._Progress, "__init__", keep)
+    s = run_batch(videos, folder / "rig.toml", tmp_path / "out", workers=1, progress=True)
+    assert s.done == 2, s.records
+    n = {p.stem: probe_video(p).n_frames for p in videos.glob("*.mp4")}
+    assert {e["shot"] for e in events} == set(n), events
+    for shot, frames in n.items():
+        mine = [e for e in events if e["shot"] == shot]
+        # (the last report may reach the client after the shot's result: not required)
+        assert all(e["total"] == frames and 0 < e["done"] <= frames for e in mine), mine
+        assert all(a["done"] <= b["done"] for a, b in zip(mine, mine[1:])), mine
+    assert bars[0].shot_frames == {k: (v, v) for k, v in n.items()}

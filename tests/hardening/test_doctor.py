@@ -41,6 +41,10 @@ def test_good_video_is_ready(good_report, good_clip):
     assert checks["camera_height"]["camera_height_m"] == pytest.approx(H, rel=0.12)
     yaw = truth.data["camera_yaw_deg"].to_numpy()
     assert checks["camera_turn"]["max_turn_deg_per_frame"] < np.abs(np.diff(yaw)).max() + 0.2
+    # the scale check's resolution, as track records it: a warning when coarser than 3 %
+    res = checks["grid_scale"]["resolution"]
+    assert res is None or 0 < res < 0.3, res
+    assert st["grid_scale"] == ("ok" if res is not None and res <= 0.03 else "warn"), checks
     assert "✓ markers" in text and "ready to track" in text
 
 

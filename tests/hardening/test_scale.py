@@ -115,6 +115,16 @@ def test_scale_check_on_a_random_setup(tmp_path, seed, cli):
     for h in (None, H):
         assert not refused(video, rig, 1.0, h), label
     assert "grid spacing" in refused(video, rig, f_h, H), (label, f_h)
+    # the resolution the tracker reports is what it catches: a spacing off by 1.25x it
+    # (either sign) is refused; without the camera height it is coarse, and says so
+    for h in (None, H):
+        shot = track_video(video, replace(rig, camera_height_m=h))
+        res = shot.meta["scale_check_resolution"]
+        assert res is not None and 0 < res < 0.25, (label, h, res)
+        warned = any("checked against the rock only" in w for w in shot.meta["warnings"])
+        assert warned == (res > 0.03), (label, h, res, shot.meta["warnings"])
+        f = 1 + float(rng.choice([-1.0, 1.0])) * 1.25 * res
+        assert "grid spacing" in refused(video, rig, f, h), (label, h, res, f)
     # through the CLI: one line naming the grid spacing; doctor fails on it
     bad = tmp_path / "bad.toml"
     bad.write_text(replace(rig, spacing_x_m=rig.spacing_x_m * f_n,
