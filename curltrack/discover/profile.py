@@ -122,15 +122,23 @@ def profile_parameter(model, fit, name, scale, unit):
         prof.at(qv)
     qb = prof.best()
     _, a = _parabola_vertex(prof.points, qb)
-    sig = float(np.sqrt(unit / a)) if a else FIRST_STEP * s0
-    sig = max(sig, s0)
-    # the width where it is measured: the rise at +-sigma, from the flatter side
-    rises = [prof.at(qb + sg * sig) - prof.points[qb][0] for sg in (-1.0, 1.0)
-             if _inside(qb + sg * sig, lo, hi)]
-    rises = [r for r in rises if np.isfinite(r)]
-    if rises:
-        sig = sig / np.sqrt(max(min(rises), 1e-3 * unit) / unit)
-        sig = float(np.clip(sig, s0, 10.0 * max(prof.points) - 10.0 * min(prof.points) + s0))
+    sig = max(float(np.sqrt(unit / a)) if a else FIRST_STEP * s0, s0)
+    # the width where it is measured, from the flatter side: each side's nearest point
+    # within reach says sigma = distance / sqrt(rise); a side with none is evaluated
+    widths = []
+    for sg in (-1.0, 1.0):
+        side = [q for q in prof.points if sg * (q - qb) > 0 and abs(q - qb) <= 4.0 * sig]
+        if not side and _inside(qb + sg * sig, lo, hi):
+            prof.at(qb + sg * sig)
+            side = [qb + sg * sig]
+        if side:
+            q = min(side, key=lambda v: abs(v - qb))
+            rise = prof.points[q][0] - prof.points[qb][0]
+            if np.isfinite(rise):
+                widths.append(abs(q - qb) / np.sqrt(max(rise, 1e-3 * unit) / unit))
+    if widths:
+        spread = max(prof.points) - min(prof.points)
+        sig = float(np.clip(max(widths), s0, 10.0 * spread + s0))
     return {"value": qb, "sigma": sig, "sigma_cov": float(s0),
             "shift": float(chi0 - prof.points[qb][0]), "values": prof.points[qb][1],
             "n_points": len(prof.points) - 1}

@@ -194,6 +194,14 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
         sc, f = max(supported_named, key=lambda p: p[0].delta_bic)
         best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
         ambiguous = rivals(sc, named)
+        # extensions that explain the data clearly better than any named effect but
+        # not one of them alone (choose() found them alike): the named effect must not
+        # take the verdict for them (a hidden translation coupling was named a pick and
+        # a patch once a friction law explained it alike)
+        better = sorted(o.name for o, _ in supported if o.extension
+                        and o.delta_bic >= sc.delta_bic + AMBIGUITY_MARGIN)
+        if better:
+            ambiguous = better
         if base_bound:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
@@ -204,7 +212,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
         elif ambiguous:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
-                               ambiguous=[sc.name] + ambiguous)
+                               ambiguous=([] if better else [sc.name]) + ambiguous)
         else:
             verdict = sc.name
     elif before.structured or blocked:

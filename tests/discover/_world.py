@@ -169,7 +169,8 @@ def _alpha_theta(v0, omega0, ice, ratio=1.0):
 #: families whose worlds are sessions by default: (shots, spin ranges (rad/s) in turn).
 #: On one draw the spin falls with the speed, so a friction law and a translation decay
 #: scaled by 1 + c |omega| are aliases; a slow and a fast spin tell them apart.
-SESSIONS = {"friction_law": (2, ((0.6, 1.2), (2.4, 3.5)))}
+SESSIONS = {"friction_law": (2, ((0.6, 1.2), (2.4, 3.5))),
+            "translation_coupling": (2, ((0.6, 1.2), (2.4, 3.5)))}
 SPINS = ((1.2, 2.5),)
 
 
