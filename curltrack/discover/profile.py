@@ -31,7 +31,7 @@ MAX_STEPS = 4
 #: a step never goes further than this many times the spread of the points so far
 MAX_REACH = 4.0
 #: iterations of each profile refit (warm-started at the nearest point already fitted)
-PROFILE_NFEV = 10
+PROFILE_NFEV = 15
 #: chi-square by which the profile must beat the fit before the fit is restarted
 MOVE_CHI2 = 0.5
 
@@ -43,6 +43,13 @@ class _Profile:
         self.model, self.name, self.scale = model, name, scale
         self.free = [f for f in fit.free if f != name]
         self.points = {float(fit.values[name]): (self.chi2(fit), dict(fit.values))}
+        # the valley's direction in the covariance: how the others move per unit of
+        # ``name`` (the Gaussian conditional mean), so each refit starts on the valley
+        # floor instead of crawling to it
+        i = fit.free.index(name)
+        c = np.where(np.isfinite(fit.cov[:, i]), fit.cov[:, i], 0.0)
+        self.slope = {f: float(c[k] / c[i]) if c[i] > 0 else 0.0
+                      for k, f in enumerate(fit.free) if f != name}
 
     def chi2(self, fit) -> float:
         return float(np.sum((fit.r * self.scale) ** 2))
@@ -55,6 +62,11 @@ class _Profile:
         m = copy.copy(self.model)
         m.values = dict(self.points[near][1])
         m.values[self.name] = value
+        for f, k in self.slope.items():
+            lo, hi = self.model.bounds.get(f, (None, None))
+            v = m.values[f] + k * (value - near)
+            if _inside(v, lo, hi):
+                m.values[f] = v
         m.free = list(self.free)
         m.bounds = dict(self.model.bounds)
         try:
