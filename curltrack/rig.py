@@ -63,6 +63,10 @@ class Rig:
         Lens height above the ice (m); estimated from the video when None.
     tracking : TrackingSettings
         The tracker's thresholds (the rig's ``[tracking]`` table over the defaults).
+    rolling_shutter_ms : float or None
+        Rolling-shutter readout time (ms): the sensor's top row is exposed this much
+        before its bottom row (phones, action cameras); each measurement is then timed
+        at the row where the rock was seen.  None = a global shutter.
     """
 
     spacing_x_m: float = 0.15
@@ -77,6 +81,7 @@ class Rig:
         Marker("#ffd000", 0.08, 0.0), Marker("#00c0ff", -0.08, 0.0)))
     fps: float | None = None
     camera_height_m: float | None = None
+    rolling_shutter_ms: float | None = None
     source: str | None = None
     tracking: TrackingSettings = field(default_factory=TrackingSettings)
 
@@ -100,6 +105,8 @@ class Rig:
             cam.append(f"fps = {self.fps!r}")
         if self.camera_height_m is not None:
             cam.append(f"height_m = {self.camera_height_m!r}")
+        if self.rolling_shutter_ms is not None:
+            cam.append(f"rolling_shutter_ms = {self.rolling_shutter_ms!r}")
         if cam:
             lines += ["[camera]", *cam, ""]
         changed = self.tracking.changed()
@@ -137,7 +144,7 @@ _ALLOWED = {
     "grid": {"spacing_x_m", "spacing_y_m", "colors", "depth_m"},
     "rock": {"diameter_m", "height_m", "band_radius_m", "inertia_radius_m"},
     "markers": {"color", "x_m", "y_m"},
-    "camera": {"fps", "height_m"},
+    "camera": {"fps", "height_m", "rolling_shutter_ms"},
 }
 
 # Plausible ranges (m); values outside are almost always a unit mistake.
@@ -147,6 +154,7 @@ _RANGES = {
     "rock.height_m": (0.0, 0.5), "rock.band_radius_m": (0.01, 0.5),
     "rock.inertia_radius_m": (0.01, 0.5), "markers.x_m": (-0.5, 0.5),
     "markers.y_m": (-0.5, 0.5), "camera.fps": (1.0, 1000.0), "camera.height_m": (0.3, 20.0),
+    "camera.rolling_shutter_ms": (0.0, 100.0),
 }
 
 
@@ -234,6 +242,7 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
             markers=tuple(markers),
             fps=_number(cam, "fps", "camera"),
             camera_height_m=_number(cam, "height_m", "camera"),
+            rolling_shutter_ms=_number(cam, "rolling_shutter_ms", "camera"),
             source=source,
             tracking=tracking,
         )

@@ -108,6 +108,13 @@ class TrackingSettings:
         6.0, "robust sigma", 1.0, 100.0,
         "frames whose apparent marker layout scale is this many robust sigmas off the "
         "video's are refused (a wrong marker identity or a bad homography changes it)")
+    sigma_outlier_factor: float = _f(
+        3.0, "x median sigma_xy", 1.5, 1000.0,
+        "a frame whose sigma_xy exceeds this many times the video's median is refused: its "
+        "own fit says it is unsure (a grid fit just inside the poor-fit limit, half-hidden "
+        "markers); on the wrong-cell test's fast handheld shots the one such frame was 14 mm "
+        "off (sigma 3.6 mm against 0.9 typical), on 5 camera-sweep set-ups no frame came "
+        "above 2.1x; frames measured from clicks are exempt")
     layout_scale_min: float = _f(
         0.7, "x layout", 0.1, 1.0,
         "the markers' apparent layout scale against the grid below which the rig's "
@@ -131,6 +138,12 @@ class TrackingSettings:
         1.0, "deg/frame", 0.01, 90.0,
         "camera turn above which SHOT.json and doctor warn: position RMS 1.5-1.9 mm up to "
         "1 deg/frame, 2.5-3.3 mm from 1.5 to 4.5 (640x360 rendered draw, steady turns)")
+    shutter_slide_warn_m: float = _f(
+        0.020, "m", 0.0, 1.0,
+        "with a rolling shutter, how far the ice may slide under the image during the "
+        "readout before SHOT.json warns that the image's shear is not modelled: a 55 mm "
+        "slide left 2.3 mm RMS in quadrature on a rendered 960x540 pole clip (29 ms "
+        "readout), so 20 mm is where it reaches ~1 mm")
     turn_fail_deg_per_frame: float = _f(
         8.0, "deg/frame", 0.1, 90.0,
         "camera turn above which doctor says track will fail (the cell index is lost from "

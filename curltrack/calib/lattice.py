@@ -242,6 +242,7 @@ def _dq_dlens(xs, K, lens, q, which=(0, 1, 2, 3)):
     rd = np.sqrt(np.einsum("ij,ij->i", d, d))
     r2 = np.einsum("ij,ij->i", q, q)
     D = 1.0 + r2 * (3.0 * k1 + 5.0 * k2 * r2)
+    D = np.where(np.abs(D) > 1e-6, D, 1e-6)  # (at a fold of the lens: no blow-up)
     out = np.empty((len(xs), 2, len(which)))
     if 2 in which or 3 in which:
         ok = rd > 1e-12
@@ -303,7 +304,7 @@ def _rows(Hc, q, xs, ab, fam_a, fam_b, ia, ib, pa, pb, K, lens, free_idx=()):
 
 
 def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None,),
-                band_px=3.0, iterations: int = 4):
+                band_px=3.0, iterations: int = 4, free_from=0.5):
     """Refine the lattice homography (and optionally the lens) by robust Gauss-Newton.
 
     Parameters
@@ -323,9 +324,11 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
         Centre of the growing region (px); default the principal point.
     radii : sequence of float or None
         Region-growing radii (px); None = all pixels.  Lens parameters are only freed
-        once the region covers more than half the image.
+        once the region reaches ``free_from`` of the farthest pixel's radius.
     band_px : float or (float, float)
         Half-width (px) of the band around a thread whose pixels belong to it (per family).
+    free_from : float or dict
+        See ``radii``; a dict gives it per lens parameter (name -> fraction).
 
     Returns
     -------
@@ -347,7 +350,9 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
         # (the pixels of this stage's region only: the inner stages are small)
         sel = slice(None) if radius is None else np.flatnonzero(rad <= radius)
         xs_s, w_s, q_s = xs[sel], w[sel], q[sel]
-        stage_free = free_idx if radius is None or radius > 0.5 * rad.max() else []
+        stage_free = [j for j in free_idx if radius is None or radius > (
+            free_from.get(LENS_PARAMS[j], 0.5) if isinstance(free_from, dict) else free_from)
+            * rad.max()]
         for it in range(iterations):
             pa, pb = periods_px(Hc, f)
             ab = apply_h(Hc, q_s)

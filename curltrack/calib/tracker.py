@@ -216,7 +216,8 @@ class GridTracker:
             half = [0.45 * p for p in periods_px(Hc, f)]
             obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model,
                                  half, step_px=COARSE_STEP_PX, mask=mask, gap_px=gap,
-                                 blur_px=SHUTTER * blur)
+                                 blur_px=SHUTTER * blur,
+                                 max_radius_px=self.calib.lens_radius_px)
             if obs is None or np.sum(obs.fam == 0) < 6 or np.sum(obs.fam == 1) < 6:
                 return Hc, None, obs
             Hc, _ = fit_points(obs.xy, obs.w, obs.fam, obs.idx, Hc, self.K, self.dist,
@@ -230,7 +231,8 @@ class GridTracker:
         step = max(PROFILE_STEP_PX, min(periods) / PROFILES_PER_CELL)
         obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model, half,
                              step_px=step, mask=mask, gap_px=gap,
-                             blur_px=SHUTTER * blur, max_profiles=MAX_PROFILES)
+                             blur_px=SHUTTER * blur, max_profiles=MAX_PROFILES,
+                             max_radius_px=self.calib.lens_radius_px)
         if obs is None or np.sum(obs.fam == 0) < 10 or np.sum(obs.fam == 1) < 10:
             return Hc, None, obs
         Hc, info = fit_points(obs.xy, obs.w, obs.fam, obs.idx, Hc, self.K, self.dist,

@@ -41,6 +41,9 @@ _CHROMA_P = np.eye(3) - 1.0 / 3.0  # RGB -> its component off the grey axis
 #: Markers at least this large (radius, px) are classified at half resolution (a blob of
 #: ~20 px is still a blob there); their sub-pixel centroid is measured at full resolution.
 _LOWRES_RADIUS_PX = 5.0
+#: Darkest pixel (r + g + b, 0-765) given a chromaticity in the fallback classification:
+#: below it 8-bit noise and compression move r/(r+g+b) by more than markers differ.
+_CHROMA_MIN_SUM = 60.0
 #: Frames at least this large (short side, px) are first searched at half resolution
 #: while the marker size is unknown (full resolution when that misses a marker).
 _LOWRES_FIRST_MIN_PX = 480
@@ -128,6 +131,11 @@ class MarkerDetector:
         self._class_mean = member / member.sum(axis=1, keepdims=True)
         self.thread_lab = np.array([lab_of_rgb(parse_color(c)) for c in self.rig.grid_colors]
                                    ).reshape(-1, 3)
+        # chromaticities of the marker colour classes, then of the threads (rig colours)
+        rgb = np.array([parse_color(c) for c in
+                        [self.rig.markers[int(np.flatnonzero(self.class_of == k)[0])].color
+                         for k in range(self.n_classes)] + list(self.rig.grid_colors)], float)
+        self._chroma_refs = rgb / np.maximum(rgb.sum(axis=1, keepdims=True), 1.0)
 
     # --- classification --------------------------------------------------------------
     def _prototypes(self, bg_lab: np.ndarray) -> np.ndarray:
@@ -148,6 +156,25 @@ class MarkerDetector:
         for c in range(self.n_classes):
             half_to_bg = 0.25 * float(np.sum((protos[c] - protos[-1]) ** 2))
             masks.append((nearest == c) & (d[c] < half_to_bg))
+        return masks
+
+    def _chroma_masks(self, patch_bgr: np.ndarray) -> list[np.ndarray]:
+        """:meth:`_class_masks` by chromaticity ``rgb / (r + g + b)``, which a shadow or
+        an exposure change (a common gain on r, g, b) leaves as it is: the nearest-
+        prototype rule over the rig's marker and thread colours and the window's median,
+        for pixels bright enough to have a chromaticity (:data:`_CHROMA_MIN_SUM`)."""
+        rgb = patch_bgr[..., ::-1].astype(np.float32)
+        total = rgb.sum(axis=-1)
+        chroma = rgb / np.maximum(total, 1.0)[..., None]
+        bg = median(chroma.reshape(-1, 3)[::3], axis=0)
+        protos = np.vstack([self._chroma_refs, np.reshape(bg, (1, 3))]).astype(np.float32)
+        d = ((chroma[..., None, :] - protos) ** 2).sum(axis=-1)
+        nearest = np.argmin(d, axis=-1)
+        bright = total > max(_CHROMA_MIN_SUM, 0.2 * float(median(total.ravel()[::3])))
+        masks = []
+        for c in range(self.n_classes):
+            half_to_bg = 0.25 * float(np.sum((protos[c] - bg) ** 2))
+            masks.append((nearest == c) & (d[..., c] < half_to_bg) & bright)
         return masks
 
     def _is_class(self, obs_lab, bg_lab, i) -> bool:
@@ -251,6 +278,14 @@ class MarkerDetector:
             pick = self._assign(cands, predicted, gate_px)
             if all(c_xy is not None for c_xy, _ in pick):
                 break
+        n_found = sum(c_xy is not None for c_xy, _ in pick)
+        if n_found < M and predicted is not None and np.isfinite(predicted).all():
+            # Markers darker or paler than their colours (a shadow, the exposure set for
+            # bright ice): classify by chromaticity instead, near the prediction only.
+            alt = self._assign(self._candidates(image_bgr, (x0, y0, x1, y1), steps[-1],
+                                                chromatic=True), predicted, gate_px)
+            if sum(c_xy is not None for c_xy, _ in alt) > n_found:
+                pick = alt
         xy = np.full((M, 2), np.nan)
         sig = np.full(M, np.nan)
         area = np.zeros(M)
@@ -283,9 +318,10 @@ class MarkerDetector:
         self.area_px = float(np.clip(0.9 * self.area_px + 0.1 * area,
                                      0.5 * self.area_ref_px, 2.0 * self.area_ref_px))
 
-    def _candidates(self, image_bgr, box, step):
+    def _candidates(self, image_bgr, box, step, chromatic: bool = False):
         """Per colour class: up to 6 blobs (centroids px, areas px^2, full-image units)
-        of the window ``box`` = (x0, y0, x1, y1), classified at 1/``step`` resolution."""
+        of the window ``box`` = (x0, y0, x1, y1), classified at 1/``step`` resolution
+        (in Lab, or with ``chromatic`` by chromaticity: :meth:`_chroma_masks`)."""
         import cv2
 
         x0, y0, x1, y1 = box
@@ -293,9 +329,11 @@ class MarkerDetector:
         if step == 2:  # pixel (u, v) = the mean of full-res pixels 2u..2u+1, 2v..2v+1
             patch = cv2.resize(patch, ((x1 - x0) // 2, (y1 - y0) // 2),
                                interpolation=cv2.INTER_AREA)
-        lab = cv2.cvtColor(patch, cv2.COLOR_BGR2Lab).astype(np.float32)
-        bg_lab = median(lab.reshape(-1, 3)[::3], axis=0)
-        masks = self._class_masks(lab, bg_lab)
+        if chromatic:
+            masks = self._chroma_masks(patch)
+        else:
+            lab = cv2.cvtColor(patch, cv2.COLOR_BGR2Lab).astype(np.float32)
+            masks = self._class_masks(lab, median(lab.reshape(-1, 3)[::3], axis=0))
         cands = []
         for c, mask in enumerate(masks):
             n, _, stats, cents = cv2.connectedComponentsWithStats(mask.view(np.uint8), 8)

@@ -171,6 +171,8 @@ def _verdict(s_m, e_m, s_o, e_o, rig, h_eff, depth_eff) -> str:
     n_sigma = st.scale_check_sigma
     if not np.isfinite(s_m):
         return ""
+    st = rig.tracking
+    n_sigma = st.scale_check_sigma
     z = OUTLINE_HEIGHT_FRACTION * rig.rock_height_m + depth_eff
     spacing = f"{rig.spacing_x_m:g} x {rig.spacing_y_m:g} m"
     head = f"the grid's scale disagrees with the rock: against the rig's grid spacing ({spacing})"

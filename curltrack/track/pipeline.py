@@ -193,6 +193,20 @@ def blank_frame(image, settings) -> bool:
     return float(image[::8, ::8].std()) < settings.blank_std
 
 
+def _row_time(rig: Rig, info, fields: bool):
+    """The rolling shutter's per-measurement time offset for :func:`track_frames`, or
+    None without ``[camera].rolling_shutter_ms``."""
+    if not rig.rolling_shutter_ms:
+        return None
+    from .shutter import row_time_offset
+
+    readout_s = 1e-3 * rig.rolling_shutter_ms
+    # (OpenCV decodes turned by the rotation tag, PyAV - also for fields - does not)
+    rotated = info.decoder != "pyav" and not fields
+    return lambda pts_px, shape: row_time_offset(pts_px, shape, readout_s,
+                                                 info.rotation_deg, rotated)
+
+
 def _calibrate(image, rig, mask):
     """(calibration, "") or (None, why the grid was not found, without "no grid found")."""
     from ..calib import calibrate_frame
@@ -207,9 +221,13 @@ def _calibrate(image, rig, mask):
         return None, msg
 
 
-def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int = 2
-                 ) -> tuple[list[FrameRecord], dict]:
+def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int = 2,
+                 row_time=None) -> tuple[list[FrameRecord], dict]:
     """Run the per-frame loop over an iterable of :class:`curltrack.video.Frame`.
+
+    ``row_time(markers_px, image_shape)``, when given (a rolling shutter,
+    :func:`curltrack.track.shutter.row_time_offset`), is added to each measured frame's
+    time: the instant at which the rock's rows were exposed.
 
     The rock's outline (the scale check's second ruler) is measured on every
     ``outline_every``-th frame.
@@ -284,8 +302,15 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         if not found:
             continue
         rec.markers_px = mf.xy_px
+        if row_time is not None:
+            rec.t = fr.t + row_time(mf.xy_px, img.shape)
         if not pose.ok:
             rec.status = f"grid: {pose.message}"
+            continue
+        if not calib.in_checked_lens(mf.xy_px).all():
+            rec.status = (f"lens: the rock is beyond the {calib.lens_radius_px:.0f} px from "
+                          f"the image centre where the threads confirm the wide-angle lens "
+                          f"(k1 = {calib.dist[0]:.3f}, k2 = {calib.dist[1]:.3f})")
             continue
         on_ice = apply_h(pose.H, q)
         ice = on_ice[:M]
@@ -427,7 +452,8 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
             records, loop_info = track_frames(
                 frames, rig, path=video_path,
                 progress=_counting(advance, report, total) if progress or report else None,
-                outline_every=max(2, total // OUTLINE_FRAMES))
+                outline_every=max(2, total // OUTLINE_FRAMES),
+                row_time=_row_time(rig, info, fields))
     finally:
         cv2.setNumThreads(threads_before)
     blank = _blank_lead(records) if start_frame is None else 0

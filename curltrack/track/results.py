@@ -19,7 +19,8 @@ from ..series.stops import detect_stops
 __all__ = ["build_series", "frame_ranges"]
 
 # The thresholds (largest origin sigma, layout-scale outliers, fewest measured frames,
-# the grid-scale resolution warning, the camera-turn warning) are the rig's
+# the grid-scale resolution warning, the rolling shutter's slide warning, the
+# camera-turn warning) are the rig's
 # TrackingSettings (curltrack.settings).
 # Camera turn: measured on a 640x360 rendered draw turned steadily about the image
 # centre: position RMS 1.5-1.9 mm (max 3.2) from 0 to 1.0 deg/frame, 2.5-3.3 mm (max 5-6)
@@ -92,6 +93,28 @@ def reason_groups(records) -> list[tuple[str, list[int], str]]:
             g[1].add(r.status)
     out = [(k, frs, next(iter(st)) if len(st) == 1 else k) for k, (frs, st) in groups.items()]
     return sorted(out, key=lambda g: (-len(g[1]), g[1][0]))
+
+
+def shutter_slide(records, calib, readout_s: float) -> tuple[int, float]:
+    """How far (m) the ice slides under the image during a rolling shutter's readout:
+    the speed of the ice point at the principal point (from consecutive measured frames'
+    homographies; running median of 3 against a cell jump) times ``readout_s``.
+    Returns (frame of the largest, its slide in m); (-1, 0.0) with < 3 measured frames.
+    """
+    from ..calib.lens import apply_h, undistort
+
+    used = [r for r in records if r.status == "" and r.H is not None]
+    if len(used) < 3 or readout_s <= 0:
+        return -1, 0.0
+    pp = undistort(calib.K[:2, 2][None], calib.K, calib.dist)[0]
+    H = np.array([r.H for r in used])
+    c = np.einsum("nij,j->ni", H, np.append(pp, 1.0))
+    c = c[:, :2] / c[:, 2:]
+    t = np.array([r.t for r in used])
+    speed = np.hypot(*np.diff(c, axis=0).T) / np.maximum(np.diff(t), 1e-6)
+    speed = np.median(np.lib.stride_tricks.sliding_window_view(speed, 3), axis=1)
+    i = int(np.argmax(speed))
+    return int(used[i + 2].frame), float(speed[i] * readout_s)
 
 
 def camera_turn(records, calib) -> tuple[np.ndarray, np.ndarray]:
@@ -208,24 +231,36 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         raise TrackingError(f"the rock could be measured in only {int(ok.sum())} of {n} "
                             f"frames ({lost})", path=path, where=span)
     depth_eff = rig.grid_depth_m / ICE_REFRACTIVE_INDEX
+    h_eff = rig.rock_height_m + depth_eff
     est = _height(records, ok, rig, depth_eff, warnings)
     calib = loop_info["calib"]
     pp = calib.K[:2, 2]
     idx = np.flatnonzero(ok)
     f_px = np.nan
     nadir = np.full((n, 2), np.nan)
+    k = np.full(len(idx), est.k)
     if np.isfinite(est.height_m):
         # (the focal is one number: its median over <= 60 frames spread over the shot)
         fs = focal_for_height(np.array([records[i].H for i in idx[::max(1, len(idx) // 60)]]),
                               est.height_m, pp)
         f_px = float(np.nanmedian(fs)) if np.isfinite(fs).any() else np.nan
         if np.isfinite(f_px):
-            nadir[idx] = camera_centre(np.array([records[i].H for i in idx]), f_px, pp)[:, :2]
+            lens = camera_centre(np.array([records[i].H for i in idx]), f_px, pp)
+            nadir[idx] = lens[:, :2]
+            # each frame's own height (a handheld camera bobs by centimetres: 1 cm at
+            # 1.5 m is 0.05 % of k, 0.5 mm at a rock 1 m from the nadir); the
+            # homography's scale measures it, the video's estimate fixes the focal
+            k = np.where(np.isfinite(lens[:, 2]) & (lens[:, 2] > 2 * h_eff),
+                         1.0 - h_eff / np.where(lens[:, 2] > 0, lens[:, 2], 1.0), est.k)
     centre = np.full((n, 2), np.nan)
     phi = np.full(n, np.nan)
     app = np.array([records[i].centre_app for i in idx]).reshape(-1, 2)
     nd = np.where(np.isfinite(nadir[idx]).all(axis=1, keepdims=True), nadir[idx], app)
-    centre[idx] = correct_parallax(app, nd, est.k)
+    centre[idx] = correct_parallax(app, nd, k[:, None])
+    # the video-wide height's uncertainty moves a rock in proportion to its distance
+    # from the nadir (the camera following a fast rock lags it by a metre)
+    sigma_parallax = np.zeros(n)
+    sigma_parallax[idx] = est.k_err * np.hypot(*(app - nd).T) if np.isfinite(est.k_err) else 0.0
     idx = _resolve_cells(records, t, centre, ok, calib, warnings, path, st)
     phi[idx] = [records[i].phi for i in idx]
     # image up direction in the lattice frame (first measured frame), for a still rock
@@ -243,8 +278,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sig_g = np.array([r.grid_sigma_m for r in records])
     sig_r = np.array([r.grid_residual_m for r in records])
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
-    sigma_xy = est.k * np.hypot(SIGMA_STAT_SCALE * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
-                                SIGMA_MISFIT_SCALE * sig_r)
+    sigma_xy = np.hypot(est.k * np.hypot(SIGMA_STAT_SCALE * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
+                                         SIGMA_MISFIT_SCALE * sig_r), sigma_parallax)
     if shot["origin_sigma_m"] > st.max_origin_sigma_m:
         raise TrackingError(f"the first measured frame is at t = {t[ok][0]:.2f} s and the "
                             "origin (the rock at t = 0) cannot be extrapolated back to it "
@@ -269,6 +304,20 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                 f"{path}: the two fields disagree by {1e3 * off[0]:+.1f}, {1e3 * off[1]:+.1f} mm"
                 f" and {np.degrees(off[2]):+.2f} deg (field 1 - field 0, over the shot): "
                 "included in sigma_xy / sigma_theta")
+    # a frame whose own fit is far less sure than the video's others is not measured
+    # (frames measured from a user's clicks carry the click precision: theirs to judge)
+    clicked = np.array([any("from clicks" in n for n in r.notes) for r in records], bool)
+    sure = ok & np.isfinite(sigma_xy)
+    if sure.sum() >= st.min_measured_frames:
+        typical = float(np.median(sigma_xy[sure & ~clicked] if (sure & ~clicked).any()
+                                  else sigma_xy[sure]))
+        unsure = sure & ~clicked & (sigma_xy > st.sigma_outlier_factor * typical)
+        for i in np.flatnonzero(unsure):
+            records[i].status = (f"uncertain: sigma_xy over {st.sigma_outlier_factor:g}x the "
+                                 f"video's typical {1e3 * typical:.1f} mm (a doubtful grid "
+                                 "or marker fit)")
+        ok &= ~unsure
+        shot = dict(shot, **{k: np.where(unsure, np.nan, shot[k]) for k in ("x", "y", "theta")})
     med = np.median(scale[ok])
     spread = robust_sigma(scale[ok], centre=med) or 1e-9
     contrast = np.array([r.contrast for r in records])
@@ -297,6 +346,15 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                         f"{n_fast} frame(s) above {turn_warn:g}): positions "
                         "lose accuracy and the grid can be lost; turn the camera more "
                         "slowly")
+    if rig.rolling_shutter_ms:
+        slide_frame, slide = shutter_slide(records, calib, 1e-3 * rig.rolling_shutter_ms)
+        if slide > st.shutter_slide_warn_m:
+            warnings.append(
+                f"{path}: frame {slide_frame}: the ice slides {1e3 * slide:.0f} mm under "
+                f"the image during the rolling shutter's {rig.rolling_shutter_ms:g} ms "
+                "readout (camera motion): rows are timed where the rock was seen, but "
+                "the image's shear under a shaking or turning camera is not modelled - "
+                "positions may be off by a few per cent of it, not included in sigma_xy")
     if abs(getattr(info, "pixel_aspect", 1.0) - 1.0) > 1e-3:
         warnings.append(f"{path}: the video's pixels are not square (aspect "
                         f"{info.pixel_aspect:.4g}): frames were resampled to square pixels "
@@ -328,6 +386,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         theta0_lattice_rad=shot["theta0"],
         tracking_settings=st.summary(),
     )
+    if rig.rolling_shutter_ms:
+        meta["rolling_shutter_ms"] = float(rig.rolling_shutter_ms)
     if calib is not None:
         meta["lens_k1"], meta["lens_k2"] = float(calib.dist[0]), float(calib.dist[1])
+        if calib.lens_radius_px is not None:
+            meta["lens_radius_px"] = float(calib.lens_radius_px)
     return Series(data, meta, None)

@@ -17,7 +17,7 @@ import pytest
 from curltrack.rig import default_rig
 
 #: track's refusals that rest on other frames (not visible in one frame alone)
-HISTORY = ("grid fit poor", "cell index", "marker layout inconsistent")
+HISTORY = ("grid fit poor", "cell index", "marker layout inconsistent", "uncertain: sigma_xy")
 
 
 def _lost_frames_clip(tmp, seed):
