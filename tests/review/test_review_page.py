@@ -84,7 +84,12 @@ def test_review_page_in_a_browser(page_file):
         box = pts.nth(k).bounding_box()
         page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
         page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
-        page.wait_for_function("window.reviewState.clicks > 0", timeout=10000)
+        try:
+            page.wait_for_function("window.reviewState.clicks > 0", timeout=10000)
+        except Exception:  # (what the click hit, for whoever reads the failure)
+            page.screenshot(path=str(artifacts / "review_click_failed.png"))
+            raise AssertionError(f"seed {seed}: clicking point {k} of y(t) at {box} "
+                                 "did not reach the plot") from None
         page.wait_for_function("!document.getElementById('video').seeking", timeout=10000)
         state = page.evaluate("window.reviewState")
         t_video = page.evaluate("document.getElementById('video').currentTime")
@@ -99,14 +104,21 @@ def test_review_page_in_a_browser(page_file):
         assert abs(cursor - t_f) < 1e-6  # (plotly keeps float32 shapes; frames are >= 16 ms apart)
         # corrections: mark the markers of the shown frame by clicking, then download
         page.click("#mark")
+        page.locator("#clicks").scroll_into_view_if_needed()  # (the plot click scrolled)
         box = page.locator("#clicks").bounding_box()
         picks = [(0.25, 0.5), (0.75, 0.4)]
         for fx, fy in picks:
             page.mouse.click(box["x"] + fx * box["width"], box["y"] + fy * box["height"])
         # (the page handles the clicks asynchronously: wait for the second one to land)
-        page.wait_for_function(
-            "Object.values(window.reviewState.corrections.frames)"
-            ".some(c => c.markers_px && c.markers_px.length >= 2)", timeout=10000)
+        try:
+            page.wait_for_function(
+                "Object.values(window.reviewState.corrections.frames)"
+                ".some(c => c.markers_px && c.markers_px.length >= 2)", timeout=10000)
+        except Exception:
+            page.screenshot(path=str(artifacts / "review_marks_failed.png"))
+            got = page.evaluate("JSON.stringify(window.reviewState.corrections)")
+            raise AssertionError(f"seed {seed}: two clicks on the frame at {box} did not "
+                                 f"mark two markers: {got}") from None
         marked = page.evaluate("window.reviewState.corrections.frames")
         assert list(marked) == [str(f)], marked
         want = [[fx * 640 - 0.5, fy * 360 - 0.5] for fx, fy in picks]
