@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import RigError
+from .settings import TrackingSettings, settings_from_table
 
 G = 9.81  # m/s^2, as in the paper
 #: the rock's defaults (contract): inertia radius R (I = M R^2 / 2) and running-band
@@ -60,6 +61,8 @@ class Rig:
         Frame-rate override (frames/s).
     camera_height_m : float or None
         Lens height above the ice (m); estimated from the video when None.
+    tracking : TrackingSettings
+        The tracker's thresholds (the rig's ``[tracking]`` table over the defaults).
     rolling_shutter_ms : float or None
         Rolling-shutter readout time (ms): the sensor's top row is exposed this much
         before its bottom row (phones, action cameras); each measurement is then timed
@@ -80,6 +83,7 @@ class Rig:
     camera_height_m: float | None = None
     rolling_shutter_ms: float | None = None
     source: str | None = None
+    tracking: TrackingSettings = field(default_factory=TrackingSettings)
 
     def to_toml(self) -> str:
         """Serialise back to the contract's TOML."""
@@ -105,6 +109,9 @@ class Rig:
             cam.append(f"rolling_shutter_ms = {self.rolling_shutter_ms!r}")
         if cam:
             lines += ["[camera]", *cam, ""]
+        changed = self.tracking.changed()
+        if changed:
+            lines += ["[tracking]", *(f"{k} = {v!r}" for k, v in changed.items()), ""]
         return "\n".join(lines)
 
 
@@ -181,7 +188,7 @@ def _check_keys(table: dict, section: str) -> None:
 def rig_from_dict(data: dict, source: str | None = None) -> Rig:
     """Build and validate a :class:`Rig` from a parsed TOML mapping."""
     try:
-        unknown = set(data) - set(_ALLOWED)
+        unknown = set(data) - set(_ALLOWED) - {"tracking"}
         if unknown:
             raise RigError(f"unknown section(s) {sorted(unknown)}", where="top level")
         for required in ("grid", "rock", "markers"):
@@ -218,6 +225,11 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
             raise RigError("markers must be at least 2 cm apart", where="[[markers]]")
         diameter = _number(rock, "diameter_m", "rock", required=True)
         _check_marker_layout(markers, diameter, colors)
+        try:
+            tracking = settings_from_table(data.get("tracking", {}))
+        except ValueError as exc:
+            key, msg = exc.args
+            raise RigError(msg, where="[tracking]" + (f".{key}" if key else "")) from None
         return Rig(
             spacing_x_m=_number(grid, "spacing_x_m", "grid", required=True),
             spacing_y_m=_number(grid, "spacing_y_m", "grid", required=True),
@@ -232,6 +244,7 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
             camera_height_m=_number(cam, "height_m", "camera"),
             rolling_shutter_ms=_number(cam, "rolling_shutter_ms", "camera"),
             source=source,
+            tracking=tracking,
         )
     except RigError as exc:
         if exc.path is None and source is not None:

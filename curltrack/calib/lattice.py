@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ._stats import median
+from .._stats import median, robust_sigma
 from .lens import apply_h, undistort
 
 MIN_PERIOD_PX = 16.0  # shortest thread spacing looked for (px)
@@ -475,7 +475,7 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
             rp = r[part]
             if rp.size:
                 med = median(rp)
-                u[part] = (rp - med) / max(clip_px, 4.5 * 1.4826 * median(np.abs(rp - med)))
+                u[part] = (rp - med) / max(clip_px, 4.5 * robust_sigma(rp, centre=med))
         ww = w0 * np.square(np.maximum(1.0 - u * u, 0.0))
         # d(residual)/d(h0..h7), analytic (as _h_jacobian): h0..h2 or h3..h5 by family
         pw = (p / wq)[:, None]

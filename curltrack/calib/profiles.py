@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._stats import median
+from .._stats import median, robust_sigma
 from .lens import apply_h, project, undistort
 
 
@@ -340,7 +340,7 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         if len(peak[rows_j]):
             aj = away[rows_j]
             if np.count_nonzero(aj) > 0.1 * aj.size:
-                noise[j] = 1.4826 * median(np.abs(det[rows_j][aj])) + 1e-3
+                noise[j] = robust_sigma(det[rows_j][aj], centre=0.0) + 1e-3
             rel_floor[j] = 0.25 * median(peak[rows_j])
     floor = 0.3 * sig.max(axis=1, where=keep, initial=0.0)
     s = np.where(keep, np.maximum(sig - floor[:, None], 0.0), 0.0)

@@ -20,9 +20,13 @@ from .shots import COORDS
 AMBIGUITY_MARGIN = 6.0
 
 
-#: a coordinate's RMS (or held-out RMS) this much above the baseline's counts as made
-#: worse (below it, the joint fit's trade between coordinates is within noise)
+#: a coordinate's RMS this much above the baseline's counts as made worse (below it,
+#: the joint fit's trade between coordinates is within noise)
 WORSE_TOLERANCE = 1.02
+#: ... and its held-out RMS this much: an extrapolation over 5 time blocks, which moves
+#: by a few % between two fits that agree in-sample (theta's went 0.00565 -> 0.00579,
+#: +2.5 %, under a friction law that does not act on theta, its in-sample RMS unchanged)
+HELDOUT_WORSE_TOLERANCE = 1.05
 
 
 def at_bound(fit, bounds: dict, names=None) -> list:
@@ -42,12 +46,13 @@ def at_bound(fit, bounds: dict, names=None) -> list:
 def _blockers(f, cand_bounds) -> list:
     """Why a supported candidate must not be named (empty: nothing against it)."""
     out = [f"parameter {b}" for b in cand_bounds]
-    for key, before, after in (("RMS", f["rms_before"], f["rms_after"]),
-                               ("held-out RMS", f["heldout_before_by_coord"],
-                                f["heldout_after_by_coord"])):
+    for key, before, after, tol in (
+            ("RMS", f["rms_before"], f["rms_after"], WORSE_TOLERANCE),
+            ("held-out RMS", f["heldout_before_by_coord"], f["heldout_after_by_coord"],
+             HELDOUT_WORSE_TOLERANCE)):
         for c in COORDS:
             b, a = (before or {}).get(c), (after or {}).get(c)
-            if b is not None and a is not None and a > WORSE_TOLERANCE * b:
+            if b is not None and a is not None and a > tol * b:
                 out.append(f"{key} of {c} worse ({b:.3g} -> {a:.3g})")
     return out
 
@@ -189,6 +194,14 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
         sc, f = max(supported_named, key=lambda p: p[0].delta_bic)
         best_fit, best_model_name, best_params = sc.fit, sc.name, sc.params
         ambiguous = rivals(sc, named)
+        # extensions that explain the data clearly better than any named effect but
+        # not one of them alone (choose() found them alike): the named effect must not
+        # take the verdict for them (a hidden translation coupling was named a pick and
+        # a patch once a friction law explained it alike)
+        better = sorted(o.name for o, _ in supported if o.extension
+                        and o.delta_bic >= sc.delta_bic + AMBIGUITY_MARGIN)
+        if better:
+            ambiguous = better
         if base_bound:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
@@ -199,7 +212,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
         elif ambiguous:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
-                               ambiguous=[sc.name] + ambiguous)
+                               ambiguous=([] if better else [sc.name]) + ambiguous)
         else:
             verdict = sc.name
     elif before.structured or blocked:

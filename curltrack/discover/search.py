@@ -72,6 +72,11 @@ class CandidateScore:
     chi2_gain: float | None = None
     noise: list | None = None
     extension: bool = False
+    #: profile-likelihood errors of an extension's parameters (:mod:`.profile`) and the
+    #: fit's covariance rescaled to them (None: not profiled)
+    profile: dict | None = None
+    cov_profile: np.ndarray | None = None
+    _scale: np.ndarray | None = None
     _refine: tuple | None = None
     _scan: tuple | None = None
 
@@ -329,16 +334,22 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
                        f"numbers are where it stopped")
     score.k = k
     score.location = loc
-    score.fit = fit1
     score.nfev = getattr(m, "nfev", None)
+    _adopt(score, fit1, m, fit0)
+    return score
+
+
+def _adopt(score: CandidateScore, fit1: FitOut, m: JointModel, fit0: FitOut) -> None:
+    """Make ``fit1`` (of model ``m``) the candidate's fit: gain, parameters, structure."""
+    cand = score._refine[0]
+    score.fit, score._model = fit1, m
     score.chi2_gain = float(fit0.chi2 - fit1.chi2)
-    score.delta_bic = float(score.chi2_gain - k * np.log(n))
+    score.delta_bic = float(score.chi2_gain - score.k * np.log(fit0.n))
     score.params, score.params_err = cand.effect.finish(
         {p.name: fit1.values[p.name] for p in cand.params},
-        {p.name: fit1.err(p.name) for p in cand.params}, fit1.values, fit1.err, loc)
+        {p.name: fit1.err(p.name) for p in cand.params}, fit1.values, fit1.err,
+        score.location)
     score.structure_after = structure_tests(segments_of(m, fit1))
-    score._model = m
-    return score
 
 
 def segments_of(model: JointModel, fit: FitOut, noise=None):
@@ -404,6 +415,7 @@ def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
     scale = np.empty(fit0.n)
     for (_, _, sl), (infl, _) in zip(base.segments, noise):
         scale[sl] = 1.0 / np.sqrt(infl)
+    score._scale = scale
     if np.all(scale == 1.0):
         return
     gain = float(np.sum((fit0.r * scale) ** 2) - np.sum((score.fit.r * scale) ** 2))
@@ -417,3 +429,55 @@ def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
                                                   level=_level(score._refine[0]),
                                                   n_boot=n_boot)
     score.structure_after = structure_tests(segments_of(score._model, score.fit, noise))
+
+
+
+def best_extension(scores) -> CandidateScore | None:
+    """The extension that could be reported: the largest delta-BIC among the refitted
+    extensions above their threshold (None: none is)."""
+    ext = [sc for sc in scores if sc.extension and sc.fit is not None
+           and sc.delta_bic > max(sc.threshold["threshold"], 0.0)]
+    return max(ext, key=lambda q: q.delta_bic) if ext else None
+
+
+def profile_extension(sc: CandidateScore, fit0: FitOut, name: str = "<shots>") -> bool:
+    """Profile-likelihood estimate and errors of an extension's parameters
+    (:mod:`.profile`), in place: ``params_err``, ``profile``, ``cov_profile``.
+
+    When a parameter's profile reaches a lower chi-square than the joint fit (which
+    stopped short along a valley), the joint fit is restarted from there and adopted.
+    Returns whether the fit changed (held-out errors and the rescoring are then stale).
+    """
+    import copy
+
+    from .profile import MOVE_CHI2, corrected_cov, profile_errors
+
+    cand = sc._refine[0]
+    scale = sc._scale if sc._scale is not None else np.ones(sc.fit.n)
+    errs = profile_errors(sc._model, sc.fit, [p.name for p in cand.params], scale)
+    moved = False
+    best = max(errs.values(), key=lambda e: e["shift"], default=None)
+    if best is not None and best["shift"] > MOVE_CHI2:
+        m = copy.copy(sc._model)
+        m.values = dict(best["values"])
+        m.free = list(sc.fit.free)
+        m.bounds = dict(sc._model.bounds)
+        try:
+            f = m.fit(max_nfev=FIT_MAX_NFEV, name=name, tol=EXTENSION_FIT_TOL)
+        except CurltrackError:
+            f = None
+        chi = (lambda q: float(np.sum((q.r * scale) ** 2)))
+        if f is not None and chi(f) < chi(sc.fit) - MOVE_CHI2:
+            _adopt(sc, f, m, fit0)
+            moved = True
+            for pname, e in errs.items():  # the widths stand; the covariance is the new fit's
+                e["sigma_cov"] = f.err(pname)
+                e["sigma"] = max(e["sigma"], e["sigma_cov"])
+    for e in errs.values():
+        e.pop("values", None)
+    sc.profile = errs
+    sc.cov_profile = corrected_cov(sc.fit, errs)
+    for pname, e in errs.items():
+        if pname in sc.params_err:
+            sc.params_err[pname] = e["sigma"]
+    return moved

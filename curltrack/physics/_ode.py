@@ -74,7 +74,7 @@ class OdeSegment:
                     if ext is not None:
                         a_T_now *= ext.curl_gain(om)
                 a_perp = a_left + a_T_now
-                f_y = f if ext is None else f * ext.friction(y, om)
+                f_y = f if ext is None else f * ext.friction(y, om, v)
                 d[0], d[1] = -v * s, v * c
                 d[2] = -c_y * f_y + (1.0 - py) * max(v, _V_FLOOR) ** (-py) * a_par
                 d[3] = heading_rate(a_perp, v, v_c)

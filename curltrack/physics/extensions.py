@@ -19,6 +19,14 @@ tests use the very same equations.  Each is a smooth multiplier with a few coeff
     omega_ref^2)^(p/2), i.e. a_T (|omega| / omega_ref)^p above omega_min (p > 0: the curl
     fades with the spin; the baseline, p = 0, keeps a_T until the spin has stopped).
 
+``friction_law`` (``dphi_low``, ``u_knee_m_per_s``; ``u_floor_m_per_s`` = 0.02)
+    The translational friction law is not a power law: mu(u) = alpha u^phi g(u) with
+    g(u) = ((u^2 + u_knee^2) / (u^2 + u_floor^2))^(dphi_low/2), i.e. the baseline's
+    alpha u^phi above the knee speed and ~ u^(phi - dphi_low) below it (dphi_low > 0:
+    friction rises more steeply as the rock slows; < 0: less steeply, towards a
+    constant), levelling off below u_floor so the rock stops in finite time.  The
+    rotational law keeps its power law.
+
 Their candidates test at a false-alarm level of :data:`EXTENSION_LEVEL` each (the four
 together add at most 2 % to discovery's false alarms).
 """
@@ -217,3 +225,57 @@ register(EffectDef(
         extension=True, level=EXTENSION_LEVEL,
         note=f"a_T scaled by (|omega| / {omega_ref(shots):.2f} rad/s)^p"),
     to_effects=_curl_effects))
+
+
+# ---------------------------------------------------------------------------------------
+# friction_law
+
+#: speed (m/s) below which the bent law levels off (the last ~1 % of a draw's time)
+U_FLOOR_M_PER_S = 0.02
+#: knee speeds scanned (m/s): from here to half the fastest release speed, log-spaced
+U_KNEE_MIN = 0.08
+N_KNEES = 12
+
+
+def knee_grid(v_max: float) -> list:
+    """Knee speeds (m/s) of the scan: a knee near the release speed is a change of
+    alpha and phi (the baseline's own), one near u_floor acts on a few frames."""
+    hi = max(0.5 * v_max, 2.0 * U_KNEE_MIN)
+    return [float(v) for v in np.geomspace(U_KNEE_MIN, hi, N_KNEES)]
+
+
+def _law_check(p):
+    if abs(p["dphi_low"]) > 3.0:
+        return f"dphi_low = {p['dphi_low']} is outside [-3, 3]"
+    if not 0.0 < p["u_floor_m_per_s"] < p["u_knee_m_per_s"]:
+        return (f"need 0 < u_floor_m_per_s ({p['u_floor_m_per_s']}) < u_knee_m_per_s "
+                f"({p['u_knee_m_per_s']})")
+    return None
+
+
+def _law_unidentifiable(shots, baseline):
+    return None if translating(shots) else "the rock does not slide"
+
+
+def _law_candidate(shots, baseline):
+    v_max = max(float(s.start.get("v0", 2.0)) for s in translating(shots))
+    knees = knee_grid(v_max)
+    return Candidate(
+        "friction_law",
+        [Param("dphi_low", null=0.0, lower=-1.5, upper=1.5, step=1e-4)],
+        location=[Param("u_knee_m_per_s", null=knees[0], lower=0.5 * U_KNEE_MIN,
+                        upper=max(v_max, 2.0 * knees[-1]), unit="m/s", step=1e-3)],
+        grid=[{"u_knee_m_per_s": v} for v in knees],
+        extension=True, level=EXTENSION_LEVEL, n_starts=1,
+        note=f"translational friction alpha u^phi bent to u^(phi - dphi_low) below a knee "
+             f"speed scanned {knees[0]:.2f}-{knees[-1]:.2f} m/s ({len(knees)} values)")
+
+
+register(EffectDef(
+    "friction_law",
+    (Param("dphi_low", REQUIRED), Param("u_knee_m_per_s", REQUIRED, "m/s"),
+     Param("u_floor_m_per_s", U_FLOOR_M_PER_S, "m/s")),
+    terms=lambda p: {"speed_law": (p["dphi_low"], p["u_knee_m_per_s"], p["u_floor_m_per_s"])},
+    check=_law_check, once=True, unidentifiable=_law_unidentifiable,
+    candidate=_law_candidate, to_effects=_effect("friction_law",
+                                                  ("dphi_low", "u_knee_m_per_s"))))

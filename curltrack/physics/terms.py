@@ -32,6 +32,10 @@ ODE path, each at most once, gathered into :class:`Extension`:
 ``curl_spin``
     ``(p, omega_ref, omega_min)``: a_T multiplied by ((omega^2 + omega_min^2) /
     omega_ref^2)^(p/2).
+``speed_law``
+    ``(dphi, u_knee, u_floor)``: the translational friction multiplied by
+    :func:`speed_law_gain` -- mu(u) = alpha u^phi above the knee speed u_knee,
+    ~ u^(phi - dphi) below it (down to u_floor, where it levels off again).
 
 Every multiplier is clipped at :data:`MIN_FACTOR`, so friction never changes sign.
 """
@@ -47,7 +51,7 @@ from ..rig import G
 
 #: the term kinds, in the order :class:`Terms` holds them (the last four: its extension)
 KINDS = ("accel", "patch", "transverse_gain", "impulse", "friction_law",
-         "friction_field", "spin_coupling", "translation_coupling", "curl_spin")
+         "friction_field", "spin_coupling", "translation_coupling", "curl_spin", "speed_law")
 EXTENSION_KINDS = KINDS[5:]
 #: multipliers of friction never fall below this (a fitted coefficient far off the data
 #: must not make friction push the rock)
@@ -77,6 +81,7 @@ class Extension(NamedTuple):
     spin_c: float = 0.0                                # s/m
     trans_c: float = 0.0                               # s/rad
     curl: tuple[float, float, float] | None = None     # (p, omega_ref, omega_min)
+    law: tuple[float, float, float] | None = None      # (dphi, u_knee, u_floor)
 
     @classmethod
     def from_terms(cls, kinds: dict) -> "Extension | None":
@@ -84,7 +89,8 @@ class Extension(NamedTuple):
         if not kinds:
             return None
         return cls(field=kinds.get("friction_field"), spin_c=kinds.get("spin_coupling", 0.0),
-                   trans_c=kinds.get("translation_coupling", 0.0), curl=kinds.get("curl_spin"))
+                   trans_c=kinds.get("translation_coupling", 0.0), curl=kinds.get("curl_spin"),
+                   law=kinds.get("speed_law"))
 
     def _field(self, y: float) -> float:
         if self.field is None:
@@ -92,11 +98,14 @@ class Extension(NamedTuple):
         k, a, b = self.field
         return max(1.0 + a * math.cos(k * y) + b * math.sin(k * y), MIN_FACTOR)
 
-    def friction(self, y: float, omega_abs: float) -> float:
-        """Multiplier of the translational friction at position ``y`` and spin |omega|."""
+    def friction(self, y: float, omega_abs: float, v: float = 1.0) -> float:
+        """Multiplier of the translational friction at position ``y``, spin |omega| and
+        speed ``v`` (m/s)."""
         f = self._field(y)
         if self.trans_c:
             f *= max(1.0 + self.trans_c * omega_abs, MIN_FACTOR)
+        if self.law is not None:
+            f *= speed_law_gain(v, *self.law)
         return f
 
     def spin_friction(self, y: float, v: float) -> float:
@@ -112,6 +121,21 @@ class Extension(NamedTuple):
             return 1.0
         p, w_ref, w_min = self.curl
         return ((omega_abs * omega_abs + w_min * w_min) / (w_ref * w_ref)) ** (0.5 * p)
+
+
+def speed_law_gain(u, dphi: float, u_knee: float, u_floor: float):
+    """Multiplier of mu = alpha u^phi that bends the friction law below a knee speed.
+
+    g(u) = ((u^2 + u_knee^2) / (u^2 + u_floor^2))^(dphi/2): 1 for u >> u_knee, about
+    (u_knee/u)^dphi for u_floor << u << u_knee (the law's exponent phi - dphi there), and
+    bounded by (u_knee/u_floor)^dphi as u -> 0, so the rock still stops in finite time
+    and the equations stay smooth.  ``u`` in m/s (scalar or array).
+    """
+    if isinstance(u, float):  # the ODE's right-hand side: keep scalar calls cheap
+        u2 = u * u
+        return ((u2 + u_knee * u_knee) / (u2 + u_floor * u_floor)) ** (0.5 * dphi)
+    u2 = np.square(np.asarray(u, dtype=float))
+    return ((u2 + u_knee * u_knee) / (u2 + u_floor * u_floor)) ** (0.5 * dphi)
 
 
 def slope_acceleration(slope_mm_per_m: float, g: float = G) -> float:

@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__
+from .._stats import robust_sigma
 from ..errors import TrackingError
 from ..rig import Rig
 from ..series import Series, make_meta
@@ -17,24 +18,17 @@ from ..series.stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
 
-#: Largest 1 sigma (m) of an origin extrapolated back to t = 0 that a series may carry
-#: (in sigma_xy); beyond it every position would be uncertain by more: an error.
-MAX_ORIGIN_SIGMA_M = 0.010
-
-#: Frames whose layout scale is this many robust sigmas off the video's are rejected.
-SCALE_OUTLIER_SIGMA = 6.0
-MIN_MEASURED = 8
+# The thresholds (largest origin sigma, layout-scale outliers, fewest measured frames,
+# the camera-turn warning) are the rig's TrackingSettings (curltrack.settings).
+# Camera turn: measured on a 640x360 rendered draw turned steadily about the image
+# centre: position RMS 1.5-1.9 mm (max 3.2) from 0 to 1.0 deg/frame, 2.5-3.3 mm (max 5-6)
+# from 1.5 to 4.5 deg/frame; at 4.9 the grid was lost for 16 frames and re-found turned
+# by 90 deg.  Slow turns (12-20 deg/s at 30 fps = 0.4-0.67 deg/frame) are as accurate as
+# a still camera and must not warn.  ``doctor`` uses the same limit.
 #: A grid scale the rock's rulers can check only to worse than this (relative) is
 #: reported: every position, speed and the friction's alpha carry such an error whole,
 #: and 3 % is the scale error issue 20 asks the check to catch.
 SCALE_RESOLUTION_WARN = 0.03
-#: Camera turn (deg/frame, the grid's rotation in the image) above which SHOT.json warns.
-#: Measured on a 640x360 rendered draw turned steadily about the image centre: position
-#: RMS 1.5-1.9 mm (max 3.2) from 0 to 1.0 deg/frame, 2.5-3.3 mm (max 5-6) from 1.5 to
-#: 4.5 deg/frame; at 4.9 the grid was lost for 16 frames and re-found turned by 90 deg.
-#: Slow turns (12-20 deg/s at 30 fps = 0.4-0.67 deg/frame) are as accurate as a still
-#: camera and must not warn.  ``doctor`` uses the same limit.
-TURN_WARN_DEG_PER_FRAME = 1.0
 #: With a rolling shutter: how far (m) the ice may slide under the image during the
 #: readout before SHOT.json warns that the image's shear is not modelled.  Measured on a
 #: rendered 960x540 phone clip on a pole (readout 29 ms): a largest slide of 55 mm left
@@ -53,12 +47,6 @@ SHUTTER_SLIDE_WARN_M = 0.020
 #: likelihood over those frames: 1.40 and 0.32 (the rock's speed added nothing); the
 #: std of error/sigma is then 0.66-1.15 per set-up (was 1.30-2.44).
 SIGMA_STAT_SCALE = 1.40
-#: A frame whose sigma_xy exceeds this many times the video's median is not measured
-#: (ok = 0): its own fit says it is unsure (a grid fit just inside the poor-fit limit,
-#: half-hidden markers).  On the wrong-cell test's fast handheld shots the one such frame
-#: was 14 mm off (sigma 3.6 mm against 0.9 typical); on 5 camera-sweep set-ups no frame
-#: came above 2.1x.
-SIGMA_OUTLIER_FACTOR = 3.0
 SIGMA_MISFIT_SCALE = 0.32
 
 
@@ -176,7 +164,7 @@ def _height(records, ok, rig: Rig, depth_eff: float, warnings: list) -> HeightEs
     return est
 
 
-def _resolve_cells(records, t, centre, ok, calib, warnings, path):
+def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
     """Put every grid segment in one cell index (:mod:`.segments`), in place.
 
     ``centre`` and the records' homographies of re-anchored segments are moved by whole
@@ -187,7 +175,7 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path):
 
     seg = np.array([r.segment for r in records])
     shift, unresolved, notes = resolve_segments(
-        t, centre, seg, ok, (calib.spacing_x_m, calib.spacing_y_m))
+        t, centre, seg, ok, (calib.spacing_x_m, calib.spacing_y_m), settings=settings)
     for i in np.flatnonzero(np.any(shift != 0, axis=1)):
         centre[i] += shift[i]
         records[i].H = np.array([[1.0, 0, shift[i, 0]], [0, 1.0, shift[i, 1]],
@@ -205,6 +193,7 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path):
 def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None) -> Series:
     """Assemble the Series (see :func:`curltrack.track.track_video` for the columns)."""
     n = len(records)
+    st = rig.tracking
     warnings: list[str] = []
     frame = np.array([r.frame for r in records])
     t = np.array([r.t for r in records], float)
@@ -215,8 +204,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     scale_resolution = np.inf
     if ok.sum() >= 5:
         med = np.median(scale[ok])
-        mad = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
-        bad = ok & (np.abs(scale - med) > SCALE_OUTLIER_SIGMA * max(mad, 1e-4))
+        mad = robust_sigma(scale[ok], centre=med) or 1e-9
+        bad = ok & (np.abs(scale - med) > st.scale_outlier_sigma * max(mad, 1e-4))
         for i in np.flatnonzero(bad):
             records[i].status = "marker layout inconsistent with the rest of the video"
         ok &= ~bad
@@ -239,12 +228,12 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                    else "no useful precision")
                 + " (a grid spacing off by less is not caught: every position, speed and "
                 f"the friction's alpha would be off by as much){hint}")
-    if ok.sum() < MIN_MEASURED:
+    if ok.sum() < st.min_measured_frames:
         span = f"frames {frame[0]}-{frame[-1]}" if n else None
-        if n < MIN_MEASURED:
+        if n < st.min_measured_frames:
             what = "the video has" if n == info.n_frames else "the tracked range has"
             raise TrackingError(f"{what} only {n} frame{'s' * (n != 1)}; a shot needs at "
-                                f"least {MIN_MEASURED} measured frames", path=path, where=span)
+                                f"least {st.min_measured_frames} measured frames", path=path, where=span)
         lost = "; ".join(f"{kind}: {len(frs)} frame{'s' * (len(frs) != 1)}"
                          for kind, frs, _ in reason_groups(records))
         raise TrackingError(f"the rock could be measured in only {int(ok.sum())} of {n} "
@@ -280,7 +269,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # from the nadir (the camera following a fast rock lags it by a metre)
     sigma_parallax = np.zeros(n)
     sigma_parallax[idx] = est.k_err * np.hypot(*(app - nd).T) if np.isfinite(est.k_err) else 0.0
-    idx = _resolve_cells(records, t, centre, ok, calib, warnings, path)
+    idx = _resolve_cells(records, t, centre, ok, calib, warnings, path, st)
     phi[idx] = [records[i].phi for i in idx]
     # image up direction in the lattice frame (first measured frame), for a still rock
     r0 = records[idx[0]]
@@ -288,7 +277,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
 
     p0 = undistort(np.nanmean(r0.markers_px, axis=0)[None], calib.K, calib.dist)
     a, b = apply_h(r0.H, np.vstack([p0, p0 + (0.0, -10.0)]))
-    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a)
+    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st)
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
     L = np.array([[m.x_m, m.y_m] for m in rig.markers])
@@ -299,7 +288,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
     sigma_xy = np.hypot(est.k * np.hypot(SIGMA_STAT_SCALE * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
                                          SIGMA_MISFIT_SCALE * sig_r), sigma_parallax)
-    if shot["origin_sigma_m"] > MAX_ORIGIN_SIGMA_M:
+    if shot["origin_sigma_m"] > st.max_origin_sigma_m:
         raise TrackingError(f"the first measured frame is at t = {t[ok][0]:.2f} s and the "
                             "origin (the rock at t = 0) cannot be extrapolated back to it "
                             f"better than ~{1e3 * shot['origin_sigma_m']:.0f} mm: give "
@@ -327,18 +316,18 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # (frames measured from a user's clicks carry the click precision: theirs to judge)
     clicked = np.array([any("from clicks" in n for n in r.notes) for r in records], bool)
     sure = ok & np.isfinite(sigma_xy)
-    if sure.sum() >= MIN_MEASURED:
+    if sure.sum() >= st.min_measured_frames:
         typical = float(np.median(sigma_xy[sure & ~clicked] if (sure & ~clicked).any()
                                   else sigma_xy[sure]))
-        unsure = sure & ~clicked & (sigma_xy > SIGMA_OUTLIER_FACTOR * typical)
+        unsure = sure & ~clicked & (sigma_xy > st.sigma_outlier_factor * typical)
         for i in np.flatnonzero(unsure):
-            records[i].status = (f"uncertain: sigma_xy over {SIGMA_OUTLIER_FACTOR:g}x the "
+            records[i].status = (f"uncertain: sigma_xy over {st.sigma_outlier_factor:g}x the "
                                  f"video's typical {1e3 * typical:.1f} mm (a doubtful grid "
                                  "or marker fit)")
         ok &= ~unsure
         shot = dict(shot, **{k: np.where(unsure, np.nan, shot[k]) for k in ("x", "y", "theta")})
     med = np.median(scale[ok])
-    spread = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
+    spread = robust_sigma(scale[ok], centre=med) or 1e-9
     contrast = np.array([r.contrast for r in records])
     # 1 for a frame whose marker layout agrees with the video's (3 robust sigmas -> 0.6)
     quality = (np.exp(-0.5 * ((scale - med) / (3 * max(spread, 1e-4))) ** 2)
@@ -357,11 +346,12 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         warnings.append(f"{path}: frame(s) {frame_ranges(frs)}: {reason} (ok = 0)")
     turn_frames, turn = camera_turn(records, calib)
     turn_max = float(turn.max()) if turn.size else None
-    if turn_max is not None and turn_max > TURN_WARN_DEG_PER_FRAME:
-        n_fast = int((turn > TURN_WARN_DEG_PER_FRAME).sum())
+    turn_warn = st.turn_warn_deg_per_frame
+    if turn_max is not None and turn_max > turn_warn:
+        n_fast = int((turn > turn_warn).sum())
         warnings.append(f"{path}: frame {int(turn_frames[np.argmax(turn)])}: the camera turns "
                         f"{turn_max:.1f} deg/frame ({turn_max * info.fps:.0f} deg/s; "
-                        f"{n_fast} frame(s) above {TURN_WARN_DEG_PER_FRAME:g}): positions "
+                        f"{n_fast} frame(s) above {turn_warn:g}): positions "
                         "lose accuracy and the grid can be lost; turn the camera more "
                         "slowly")
     if rig.rolling_shutter_ms:
@@ -402,6 +392,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         frame_y_axis_lattice=shot["y_hat"].tolist(),
         frame_axis_source=shot["direction_source"],
         theta0_lattice_rad=shot["theta0"],
+        tracking_settings=st.summary(),
     )
     if rig.rolling_shutter_ms:
         meta["rolling_shutter_ms"] = float(rig.rolling_shutter_ms)

@@ -11,7 +11,11 @@ contract series.  Families (``FAMILIES``), each with its strength's meaning:
 * ``spin_coupling`` -- d|omega|/dt multiplied by 1 + c v (c = +-strength, s/m);
 * ``translation_coupling`` -- dv/dt multiplied by 1 + c |omega| (c = +-strength, s/rad);
 * ``curl_spin_dependence`` -- a_T multiplied by (|omega| / omega_ref)^p (p = strength;
-  the spin is made to stop before the translation, so the curl fades with it).
+  the spin is made to stop before the translation, so the curl fades with it);
+* ``friction_law`` -- the translational friction law bends below a knee speed u_k
+  (0.25-0.8 m/s): its log-log slope changes by -dphi (dphi = +-strength) from
+  phi above the knee, written here as exp of half dphi times the log-ratio of
+  (v^2 + u_k^2) and (v^2 + 0.02^2).
 """
 
 from __future__ import annotations
@@ -32,11 +36,12 @@ NOISE_M = 0.002
 NOISE_RAD = float(np.radians(0.3))
 
 FAMILIES = ("friction_field", "spin_coupling", "translation_coupling",
-            "curl_spin_dependence")
+            "curl_spin_dependence", "friction_law")
 
 #: the truth key of each family that the extension's params must recover
 KEYS = {"friction_field": ("amplitude", "wavelength_m"), "spin_coupling": ("c_s_per_m",),
-        "translation_coupling": ("c_s_per_rad",), "curl_spin_dependence": ("p",)}
+        "translation_coupling": ("c_s_per_rad",), "curl_spin_dependence": ("p",),
+        "friction_law": ("dphi_low",)}
 
 
 def integrate(v0, omega0, phi_y, alpha_y, phi_t, alpha_t, a_T, hidden=None, fps=30.0,
@@ -161,9 +166,18 @@ def _alpha_theta(v0, omega0, ice, ratio=1.0):
     return k_t * R ** 2 / (2.0 * G * R_BAND ** (1.0 + phi_t))
 
 
-def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None,
+#: families whose worlds are sessions by default: (shots, spin ranges (rad/s) in turn).
+#: On one draw the spin falls with the speed, so a friction law and a translation decay
+#: scaled by 1 + c |omega| are aliases; a slow and a fast spin tell them apart.
+SESSIONS = {"friction_law": (2, ((0.6, 1.2), (2.4, 3.5))),
+            "translation_coupling": (2, ((0.6, 1.2), (2.4, 3.5)))}
+SPINS = ((1.2, 2.5),)
+
+
+def make_world(family: str, strength: float, rng, n_shots: int | None = None, ice=None,
                noise: str = "white"):
-    """Shots on one sheet with a hidden ``family`` term of the given strength.
+    """Shots on one sheet with a hidden ``family`` term of the given strength
+    (``n_shots`` default: :data:`SESSIONS`, else one).
 
     Returns
     -------
@@ -191,12 +205,18 @@ def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None,
     elif family == "curl_spin_dependence":
         ratio = float(rng.uniform(0.55, 0.8))
         truth["p"] = strength
+    elif family == "friction_law":
+        d, u_k = sign * strength, float(rng.uniform(0.25, 0.8))
+        hidden = {"fric": lambda y, v, w: math.exp(
+            0.5 * d * (math.log(v * v + u_k * u_k) - math.log(v * v + 0.02 ** 2)))}
+        truth.update(dphi_low=d, u_knee_m_per_s=u_k, phi_y=ice["phi_y"], alpha_y=ice["alpha_y"])
     elif family != "none":
         raise ValueError(family)
     shots = []
-    for i in range(n_shots):
+    default_n, spins = SESSIONS.get(family, (1, SPINS))
+    for i in range(default_n if n_shots is None else n_shots):
         v0 = float(rng.uniform(1.6, 2.2))
-        omega0 = float(rng.choice([-1, 1]) * rng.uniform(1.2, 2.5))
+        omega0 = float(rng.choice([-1, 1]) * rng.uniform(*spins[i % len(spins)]))
         a_th = _alpha_theta(v0, omega0, ice, ratio)
         if family == "curl_spin_dependence":
             w_ref, p = abs(omega0), strength
@@ -206,3 +226,51 @@ def make_world(family: str, strength: float, rng, n_shots: int = 1, ice=None,
                                              ice["phi_t"], a_th, ice["a_T"], hidden)
         shots.append(as_series(t, x, y, th, t_tr, t_rot, rng, noise=noise))
     return shots, truth
+
+
+def true_mu(truth, u):
+    """The hidden friction law mu(u) of a ``friction_law`` world (m/s in, no unit out)."""
+    u = np.asarray(u, dtype=float)
+    d, u_k = truth["dphi_low"], truth["u_knee_m_per_s"]
+    return truth["alpha_y"] * u ** truth["phi_y"] * np.exp(
+        0.5 * d * (np.log(u * u + u_k * u_k) - np.log(u * u + 0.02 ** 2)))
+
+
+def curve_pulls(ext, truth, lo=0.15, hi_frac=0.8):
+    """(fitted - true mu(u)) / its 1-sigma band over lo <= u <= hi_frac * u_max, where a
+    draw's data weigh the law (below ~0.15 m/s a draw spends its last second)."""
+    f = ext["function"]
+    u = np.asarray(f["x"])
+    sel = (u >= lo) & (u <= hi_frac * u.max())
+    val = np.asarray(f["value"])[sel]
+    band = 0.5 * (np.asarray(f["band_hi"]) - np.asarray(f["band_lo"]))[sel]
+    return (val - true_mu(truth, u[sel])) / band
+
+
+def make_peer_law_world(rng, noise: str = "white", n_shots: int = 2):
+    """Draws under a friction law written as a peer simulator would: a constant plus
+    a term that falls with speed, mu(u) = mu_c + mu_1 (u / 1 m/s)^(-1/2) (not a power
+    law, and not the bent power law of discovery's ``friction_law`` either).
+
+    Shots of one session with a slow and a fast spin (:data:`SESSIONS`): on one draw
+    the two aliases explained a peer-law draw alike, delta-BIC 1161 and 1154.
+
+    Returns (shots, truth) with ``truth["mu"]`` the law as a function of u (m/s).
+    """
+    ice = draw_ice(rng)
+    mu1 = float(rng.uniform(0.006, 0.01))
+    frac = float(rng.uniform(0.3, 0.7))     # share of the constant at 1 m/s
+    mu_c, mu_1 = frac * mu1, (1.0 - frac) * mu1
+    law = lambda u: mu_c + mu_1 / np.sqrt(np.maximum(u, 1e-9))  # noqa: E731
+    # the integrator's law is alpha_y v^phi_y times the hidden factor: divide it out
+    fric = lambda y, v, w: float(law(v)) / (ice["alpha_y"] * max(v, 1e-9) ** ice["phi_y"])  # noqa: E731
+    shots = []
+    spins = SESSIONS["friction_law"][1]
+    for i in range(n_shots):
+        v0 = float(rng.uniform(1.6, 2.2))
+        omega0 = float(rng.choice([-1, 1]) * rng.uniform(*spins[i % len(spins)]))
+        a_th = _alpha_theta(v0, omega0, ice)
+        t, x, y, th, t_tr, t_rot = integrate(v0, omega0, ice["phi_y"], ice["alpha_y"],
+                                             ice["phi_t"], a_th, ice["a_T"], {"fric": fric})
+        shots.append(as_series(t, x, y, th, t_tr, t_rot, rng, noise=noise))
+    return shots, {"family": "friction_law", "mu_c": mu_c, "mu_1": mu_1, "mu": law}

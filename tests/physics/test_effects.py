@@ -184,7 +184,7 @@ def test_effect_defaults_and_duplicates():
                         "domega_rad_per_s": 0.0}
     assert set(EFFECTS) == {"velocity_dependent_friction", "ice_slope", "friction_patch",
                             "late_curl", "pick", "friction_field", "spin_coupling",
-                            "translation_coupling", "curl_spin_dependence"}
+                            "translation_coupling", "curl_spin_dependence", "friction_law"}
     with pytest.raises(ParameterError, match="once"):
         gather([Effect("late_curl", {"k": 1}), Effect("late_curl", {"k": 2})])
     terms = gather([("ice_slope", {"slope_x_mm_per_m": 1}), ("ice_slope", {"slope_x_mm_per_m": 2})])
