@@ -289,9 +289,10 @@ COARSE_PIXELS = 25_000
 #: in the reference focal length, e.g. an action camera's k1 = -0.27, k2 = 0.04 at
 #: f = 660 px on 960x540) bends the outer threads by a whole cell past the stage's
 #: extrapolation and the fit lands a cell off (57 mm RMS over the view; 0.08 mm now;
-#: measured on 90 random artificial frames, k1 -0.35..-0.12).  The mild schedule (as
-#: before) where the wide one fails: on a 400x224 crop the lens freed at 0.3 of a small
-#: radius diverged (k2 = -38), an error on 3 frames.
+#: measured on 90 random artificial frames, k1 -0.35..-0.12).  k2 and the centre wait
+#: until 0.5: freed at 0.3 of a small image's radius (a 400x224 crop) k2 diverged to -38
+#: and 3 frames found no grid.  The mild schedule (as before) is the fall-back where the
+#: wide one fails.
 LENS_SCHEDULES = (
     ((0.25, 0.35, 0.45, 0.55, 0.65, 0.75, 0.85), LENS_PARAMS,
      {"k1": 0.3, "k2": 0.5, "cx": 0.5, "cy": 0.5}),
