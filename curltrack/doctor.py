@@ -25,7 +25,6 @@ import numpy as np
 
 from .errors import CurltrackError, TrackingError
 from .rig import Rig
-from .track.results import TURN_WARN_DEG_PER_FRAME
 
 __all__ = ["Check", "DoctorReport", "diagnose"]
 
@@ -39,10 +38,9 @@ MIN_ROCK_PX = 45.0
 MIN_SPACING_PX = 8.0
 #: Camera heights a rig of this kind is mounted at (m).
 HEIGHT_RANGE_M = (0.8, 8.0)
-#: Camera turn between consecutive frames (deg/frame): above the first, positions lose
-#: accuracy (the limit ``track`` warns at; measured there); above the second the grid's
-#: cell index is lost (measured: from ~10 deg/frame).
-TURN_WARN_DEG, TURN_FAIL_DEG = TURN_WARN_DEG_PER_FRAME, 8.0
+# Camera turn between consecutive frames (deg/frame): above the rig's
+# tracking.turn_warn_deg_per_frame positions lose accuracy (the limit ``track`` warns
+# at); above turn_fail_deg_per_frame the grid's cell index is lost (~10 deg/frame).
 #: Sampled frames that are also checked against their next frame (camera turn rate).
 N_PAIRS = 3
 
@@ -106,52 +104,29 @@ class DoctorReport:
         return "\n".join(lines)
 
 
-def _frames_at(path, indices, fps_override):
-    from .video import iter_frames
-
-    for i in indices:
-        for fr in iter_frames(path, start=int(i), end=int(i) + 1, fps_override=fps_override):
-            yield fr
-
-
-def _rock_mask(shape, xy_px, rig, px_per_m):
-    import cv2
-
-    m = np.zeros(shape[:2], np.uint8)
-    c = np.nanmean(xy_px, axis=0)
-    r = 0.5 * rig.rock_diameter_m * px_per_m
-    cv2.circle(m, (int(round(c[0])), int(round(c[1]))), int(np.ceil(1.35 * r + 8)), 255, -1)
-    return m
-
-
-def _sample(image, rig, det):
-    """Markers, grid and its angle on one frame -> dict of what was found."""
-    from .calib import calibrate_frame
+def _sample(verdict, image, rig, det):
+    """What doctor reports of one frame, from ``track``'s verdict on it (dict)."""
     from .track.parallax import similarity_fit
 
-    out = {"markers_found": None, "grid": None, "grid_msg": "", "scale": np.nan,
+    out = {"markers_found": list(verdict.markers_found), "grid": None,
+           "grid_msg": verdict.grid_status, "status": verdict.status, "scale": np.nan,
            "outline_scale": np.nan, "rock_px": np.nan, "spacing_px": np.nan,
            "residual_px": np.nan}
-    mf = det.detect(image)
-    out["markers_found"] = mf.found.tolist()
-    mask = None
     L = det.layout_m
-    sep_m = float(np.hypot(*(L[0] - L[1])))
-    if mf.found.all():
-        sep_px = float(np.hypot(*(mf.xy_px[0] - mf.xy_px[1])))
-        out["rock_px"] = rig.rock_diameter_m * sep_px / sep_m
-        mask = _rock_mask(image.shape, mf.xy_px, rig, sep_px / sep_m)
-    try:
-        cal = calibrate_frame(image, rig, mask=mask)
-    except TrackingError as exc:
-        out["grid_msg"] = exc.message
+    xy = verdict.markers_px
+    if xy is not None:
+        sep_m = float(np.hypot(*(L[0] - L[1])))
+        out["rock_px"] = rig.rock_diameter_m * float(np.hypot(*(xy[0] - xy[1]))) / sep_m
+    cal = verdict.calibration
+    if cal is None:
         return out
     out["grid"] = True
     out["spacing_px"], out["residual_px"] = float(cal.spacing_px), float(cal.residual_px)
     out["n_threads"] = list(cal.n_threads)
+    out["lens"] = (float(cal.dist[0]), float(cal.dist[1]), cal.lens_radius_px)
     out["yaw_deg"] = cal.yaw_deg()  # image +u in the lattice
-    if mf.found.all():
-        ice = cal.image_to_ice(mf.xy_px)
+    if xy is not None:
+        ice = cal.image_to_ice(xy)
         if np.isfinite(ice).all():
             from .track.outline import outline_radius
 
@@ -161,7 +136,7 @@ def _sample(image, rig, det):
     return out
 
 
-def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
+def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES, frames=None) -> DoctorReport:
     """Check a video and a rig before tracking.
 
     Parameters
@@ -172,6 +147,12 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
         The rig (grid spacings and colours, rock, markers, camera).
     n_samples : int
         Frames to examine, spread evenly from the first to the last.
+    frames : iterable of int, optional
+        Examine these frames instead.
+
+    Each frame is judged as ``track`` judges it (:func:`curltrack.track.check.check_frames`:
+    the same steps, thresholds and messages), so a frame doctor calls lost is ``ok`` = 0
+    in ``track``'s output and the reverse (``frames`` check).
 
     Returns
     -------
@@ -179,6 +160,7 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
         ``report.ok`` is False when ``track`` cannot succeed.  Raises nothing for a bad
         video: an unreadable file is a failed ``video`` check.
     """
+    from .track.check import check_frames, frame_reader
     from .track.markers import MarkerDetector
     from .video import probe_video
 
@@ -209,27 +191,39 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES) -> DoctorReport:
         rep.checks.append(Check("length", "fail", f"only {info.n_frames} frames",
                                 "a shot needs at least 12 measured frames; record the "
                                 "whole shot until the rock rests"))
-    idx = np.unique(np.linspace(0, info.n_frames - 1, max(1, min(n_samples, info.n_frames)))
-                    .round().astype(int))
+    if frames is None:
+        idx = np.unique(np.linspace(0, info.n_frames - 1, max(1, min(n_samples, info.n_frames)))
+                        .round().astype(int))
+    else:
+        idx = np.unique(np.asarray(list(frames), int))
+        bad = idx[(idx < 0) | (idx >= info.n_frames)]
+        if bad.size:
+            from .errors import ParameterError
+
+            raise ParameterError(f"frame {int(bad[0])} is outside the video (frames "
+                                 f"0-{info.n_frames - 1})", path=video, where="frames")
     nxt = [int(i) + 1 for i in idx[:N_PAIRS] if i + 1 < info.n_frames]
     det = MarkerDetector(rig)
+    read = frame_reader(video, info.n_frames, rig.fps)
     found = {}
     try:
-        for fr in _frames_at(video, sorted(set(idx.tolist()) | set(nxt)), rig.fps):
-            found[fr.index] = (fr.t, _sample(fr.image, rig, det))
+        for i in sorted(set(idx.tolist()) | set(nxt)):
+            verdict, = check_frames(read, [i], rig, detector=det)
+            found[i] = _sample(verdict, read(i), rig, det)
     except CurltrackError as exc:
         rep.checks.append(Check("decode", "fail", str(exc), "the file is damaged; re-export"))
         return rep
-    samples = [(int(i), found[int(i)][1]) for i in idx if int(i) in found]
+    samples = [(int(i), found[int(i)]) for i in idx if int(i) in found]
+    _frame_check(rep, samples)
     _marker_checks(rep, rig, samples)
     _grid_checks(rep, rig, samples)
     _geometry_checks(rep, rig, samples)
-    _turn_check(rep, [(found[i - 1][1], found[i][1], i - 1) for i in nxt
-                      if i - 1 in found and i in found], info.fps)
+    _turn_check(rep, [(found[i - 1], found[i], i - 1) for i in nxt
+                      if i - 1 in found and i in found], info.fps, rig.tracking)
     return rep
 
 
-def _turn_check(rep, pairs, fps: float):
+def _turn_check(rep, pairs, fps: float, settings):
     """Camera turn between consecutive frames, from the lattice's angle in each."""
     from .calib.grid import lattice_turn_deg
 
@@ -246,16 +240,32 @@ def _turn_check(rep, pairs, fps: float):
               "pairs": len(rates)}
     detail = (f"up to {worst:.2f} deg/frame ({per_s:.0f} deg/s) over {len(rates)} "
               f"frame pair(s)")
-    if worst > TURN_FAIL_DEG:
+    warn, fail = settings.turn_warn_deg_per_frame, settings.turn_fail_deg_per_frame
+    if worst > fail:
         rep.checks.append(Check("camera_turn", "fail", detail + f" at frame {frame}",
                                 "the camera turns too fast to follow the grid: hold it "
                                 "steadier or mount it", values))
-    elif worst > TURN_WARN_DEG:
+    elif worst > warn:
         rep.checks.append(Check("camera_turn", "warn", detail + f" at frame {frame}",
-                                f"above {TURN_WARN_DEG:g} deg/frame positions lose accuracy "
+                                f"above {warn:g} deg/frame positions lose accuracy "
                                 "(several mm): turn the camera more slowly", values))
     else:
         rep.checks.append(Check("camera_turn", "ok", detail, values=values))
+
+
+def _frame_check(rep, samples):
+    """Each sampled frame's verdict, as ``track`` will give it (ok / why not)."""
+    lost = [(f, s["status"]) for f, s in samples if s["status"]]
+    values = {"verdicts": {str(f): s["status"] for f, s in samples},
+              "grid": {str(f): s["grid_msg"] for f, s in samples}}
+    detail = (f"{len(samples) - len(lost)}/{len(samples)} sampled frames measurable as "
+              "track measures them")
+    if lost:
+        rep.checks.append(Check("frames", "warn", detail + "; " + "; ".join(
+            f"frame {f}: {why}" for f, why in lost), "track will give these frames ok = 0 "
+            "(see the checks below for the causes)", values))
+    else:
+        rep.checks.append(Check("frames", "ok", detail, values=values))
 
 
 def _frames_text(frames) -> str:
@@ -309,6 +319,12 @@ def _grid_checks(rep, rig, samples):
     values.update(spacing_px=sp, residual_px=res)
     detail = (f"found in {len(found)}/{n} sampled frames; spacing {sp:.1f} px, residual "
               f"{res:.2f} px")
+    cut = [s["lens"] for _, s in found if s["lens"][2] is not None]
+    if cut:  # a strong wide-angle lens, confirmed by the threads only near the centre
+        k1, k2, r = cut[0][0], cut[0][1], min(c[2] for c in cut)
+        values["lens_radius_px"] = r
+        detail += (f"; wide-angle lens (k1 {k1:.3f}, k2 {k2:.3f}) confirmed by the threads "
+                   f"within {r:.0f} px of the image centre: the rock is not measured beyond")
     if len(found) < n:
         lost = [f for f, s in samples if not s["grid"]]
         rep.checks.append(Check("grid", "warn", detail,
@@ -380,14 +396,13 @@ def _scale_resolution_check(rep, rig, samples, depth: float) -> None:
     """How finely the rock's rulers check the grid's scale on these frames (what
     ``track`` records as ``scale_check_resolution``; it warns on the same limit)."""
     from .track.outline import scale_check_resolution
-    from .track.results import SCALE_RESOLUTION_WARN
 
     res = scale_check_resolution([x["scale"] for _, x in samples],
                                  [x["outline_scale"] for _, x in samples], rig,
                                  rig.rock_height_m + depth, depth)
     text = (f"the grid's scale is checked against the rock to +-{100 * res:.1f} %"
             if np.isfinite(res) else "the grid's scale cannot be checked against the rock")
-    if res <= SCALE_RESOLUTION_WARN:
+    if res <= rig.tracking.scale_resolution_warn:
         rep.checks.append(Check("grid_scale", "ok", text, values={"resolution": res}))
         return
     rep.checks.append(Check(

@@ -42,6 +42,7 @@ from uncertainties import UFloat
 from . import __version__
 from .errors import FitError, SeriesError
 from .physics import closed_form as cf
+from .fitting import solve
 from .physics.params import DESKEW, LAMBDA, bound_warnings, to_lmfit
 from .rig import Rig, default_rig
 from .sanity import check_units
@@ -200,16 +201,9 @@ def _values(params: lmfit.Parameters) -> dict:
 
 
 def _minimize(resid, params, name, path):
-    try:
-        with np.errstate(all="ignore"):  # trial steps may overflow; judged by the result
-            res = lmfit.minimize(resid, params, method="leastsq", max_nfev=4000)
-    except ValueError as exc:
-        if "NaN" in str(exc):  # lmfit's long FAQ message: the model left its domain
-            raise FitError(f"{name} fit: the fitted parameters are outside the model's range "
-                           "(the model gave NaN)", path=path) from None
-        raise FitError(f"{name} fit failed ({exc})".splitlines()[0], path=path) from None
-    except (FloatingPointError, np.linalg.LinAlgError) as exc:
-        raise FitError(f"{name} fit failed ({exc})".splitlines()[0], path=path) from None
+    """Levenberg-Marquardt through the one least-squares layer (:func:`..fitting.solve`)."""
+    with np.errstate(all="ignore"):  # trial steps may overflow; judged by the result
+        res = solve(resid, params, "leastsq", label=f"{name} fit", path=path, max_nfev=4000)
     if not res.success:
         raise FitError(f"{name} fit did not converge ({res.message})", path=path)
     if not res.errorbars or res.covar is None:
@@ -217,8 +211,9 @@ def _minimize(resid, params, name, path):
         # a trust-region pass from there computes it from the Jacobian's SVD.
         try:
             with np.errstate(all="ignore"):
-                res = lmfit.minimize(resid, res.params, method="least_squares")
-        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+                res = solve(resid, res.params, "least_squares", label=f"{name} fit",
+                            path=path)
+        except FitError:
             pass
     if not res.errorbars or res.covar is None:
         raise FitError(f"{name} fit converged but its uncertainties could not be estimated "

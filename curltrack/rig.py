@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import RigError
+from .settings import TrackingSettings, settings_from_table
 
 G = 9.81  # m/s^2, as in the paper
 #: the rock's defaults (contract): inertia radius R (I = M R^2 / 2) and running-band
@@ -60,6 +61,12 @@ class Rig:
         Frame-rate override (frames/s).
     camera_height_m : float or None
         Lens height above the ice (m); estimated from the video when None.
+    tracking : TrackingSettings
+        The tracker's thresholds (the rig's ``[tracking]`` table over the defaults).
+    rolling_shutter_ms : float or None
+        Rolling-shutter readout time (ms): the sensor's top row is exposed this much
+        before its bottom row (phones, action cameras); each measurement is then timed
+        at the row where the rock was seen.  None = a global shutter.
     """
 
     spacing_x_m: float = 0.15
@@ -74,7 +81,9 @@ class Rig:
         Marker("#ffd000", 0.08, 0.0), Marker("#00c0ff", -0.08, 0.0)))
     fps: float | None = None
     camera_height_m: float | None = None
+    rolling_shutter_ms: float | None = None
     source: str | None = None
+    tracking: TrackingSettings = field(default_factory=TrackingSettings)
 
     def to_toml(self) -> str:
         """Serialise back to the contract's TOML."""
@@ -96,8 +105,13 @@ class Rig:
             cam.append(f"fps = {self.fps!r}")
         if self.camera_height_m is not None:
             cam.append(f"height_m = {self.camera_height_m!r}")
+        if self.rolling_shutter_ms is not None:
+            cam.append(f"rolling_shutter_ms = {self.rolling_shutter_ms!r}")
         if cam:
             lines += ["[camera]", *cam, ""]
+        changed = self.tracking.changed()
+        if changed:
+            lines += ["[tracking]", *(f"{k} = {v!r}" for k, v in changed.items()), ""]
         return "\n".join(lines)
 
 
@@ -130,7 +144,7 @@ _ALLOWED = {
     "grid": {"spacing_x_m", "spacing_y_m", "colors", "depth_m"},
     "rock": {"diameter_m", "height_m", "band_radius_m", "inertia_radius_m"},
     "markers": {"color", "x_m", "y_m"},
-    "camera": {"fps", "height_m"},
+    "camera": {"fps", "height_m", "rolling_shutter_ms"},
 }
 
 # Plausible ranges (m); values outside are almost always a unit mistake.
@@ -140,6 +154,7 @@ _RANGES = {
     "rock.height_m": (0.0, 0.5), "rock.band_radius_m": (0.01, 0.5),
     "rock.inertia_radius_m": (0.01, 0.5), "markers.x_m": (-0.5, 0.5),
     "markers.y_m": (-0.5, 0.5), "camera.fps": (1.0, 1000.0), "camera.height_m": (0.3, 20.0),
+    "camera.rolling_shutter_ms": (0.0, 100.0),
 }
 
 
@@ -173,7 +188,7 @@ def _check_keys(table: dict, section: str) -> None:
 def rig_from_dict(data: dict, source: str | None = None) -> Rig:
     """Build and validate a :class:`Rig` from a parsed TOML mapping."""
     try:
-        unknown = set(data) - set(_ALLOWED)
+        unknown = set(data) - set(_ALLOWED) - {"tracking"}
         if unknown:
             raise RigError(f"unknown section(s) {sorted(unknown)}", where="top level")
         for required in ("grid", "rock", "markers"):
@@ -210,6 +225,11 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
             raise RigError("markers must be at least 2 cm apart", where="[[markers]]")
         diameter = _number(rock, "diameter_m", "rock", required=True)
         _check_marker_layout(markers, diameter, colors)
+        try:
+            tracking = settings_from_table(data.get("tracking", {}))
+        except ValueError as exc:
+            key, msg = exc.args
+            raise RigError(msg, where="[tracking]" + (f".{key}" if key else "")) from None
         return Rig(
             spacing_x_m=_number(grid, "spacing_x_m", "grid", required=True),
             spacing_y_m=_number(grid, "spacing_y_m", "grid", required=True),
@@ -222,7 +242,9 @@ def rig_from_dict(data: dict, source: str | None = None) -> Rig:
             markers=tuple(markers),
             fps=_number(cam, "fps", "camera"),
             camera_height_m=_number(cam, "height_m", "camera"),
+            rolling_shutter_ms=_number(cam, "rolling_shutter_ms", "camera"),
             source=source,
+            tracking=tracking,
         )
     except RigError as exc:
         if exc.path is None and source is not None:

@@ -9,6 +9,9 @@ Renders its own inputs deterministically (seeds), then measures
 * track: per set-up position RMS/max (mm), θ RMS (deg), stop-frame errors, parallax
   factor error (%), camera height, and speed as track fps ÷ decode-only fps of the same
   video in the same run (960x540 and 1920x1080);
+* cameras: per camera kind (camcorder, phone, action camera with a strong wide-angle
+  lens or a fisheye, ladder, handheld; ``scripts/bench_cameras.py``) position / θ RMS,
+  std of error/σ, frames measured, tracking speed ratio;
 * discover: s per shot, detection rate against effect strength, false-alarm rate;
 * batch: throughput with 1 and 2 Dask workers;
 * memory: peak RSS of tracking against video length (must be flat), when available;
@@ -155,6 +158,13 @@ def bench_track(quick: bool) -> dict:
     return out
 
 
+def bench_cameras(quick: bool) -> dict:
+    import bench_cameras as bc
+
+    kinds = ("ladder", "action-strong") if quick else bc.KINDS
+    return {"kinds": [bc.bench_kind(k) for k in kinds]}
+
+
 def bench_discover(quick: bool) -> dict:
     import bench_discover as bd
 
@@ -182,8 +192,8 @@ def bench_memory(quick: bool) -> dict:
 
 
 SECTIONS = {"simulate": bench_simulate, "fit": bench_fit, "render": bench_render,
-            "track": bench_track, "discover": bench_discover, "batch": bench_batch,
-            "memory": bench_memory}
+            "track": bench_track, "cameras": bench_cameras, "discover": bench_discover,
+            "batch": bench_batch, "memory": bench_memory}
 
 
 def _fmt(v):
@@ -252,6 +262,10 @@ def markdown(doc: dict) -> str:
                 f"{r['decode_ms']:.1f}, grid {r['grid_ms']:.1f}, markers "
                 f"{r['markers_ms']:.1f}, other {r['other_ms']:.1f}", "≥ 0.25×",
                 r["ratio"] >= 0.25)
+    if doc.get("cameras", {}).get("kinds"):
+        import bench_cameras as bc
+
+        out.extend(bc.markdown_rows(doc["cameras"]["kinds"]))
     d = doc.get("discover", {})
     fa = d.get("false_alarms")
     if fa:
@@ -285,12 +299,12 @@ def markdown(doc: dict) -> str:
     return "\n".join(out)
 
 
-def write_readme(readme: Path, text: str) -> None:
-    """Replace the block between the BENCHMARKS markers of ``readme`` with ``text``."""
+def write_readme(readme: Path, text: str, marker: str = "BENCHMARKS") -> None:
+    """Replace the block between the ``marker`` comments of ``readme`` with ``text``."""
     from curltrack._atomic import write_text
 
     src = readme.read_text(encoding="utf-8")
-    begin, end = "<!-- BENCHMARKS -->", "<!-- /BENCHMARKS -->"
+    begin, end = f"<!-- {marker} -->", f"<!-- /{marker} -->"
     if begin not in src:
         raise SystemExit(f"{readme}: no '{begin}' marker")
     head, rest = src.split(begin, 1)

@@ -28,8 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import TrackingError
-from .lattice import assign_families, fit_lattice, initial_lattice, per_line_offsets, periods_px
-from .lens import apply_h, camera_matrix, distort, undistort
+from .lattice import (LENS_PARAMS, MIN_PERIOD_PX, assign_families, fit_lattice,
+                      initial_lattice, per_line_offsets, periods_px)
+from .lens import apply_h, camera_matrix, corners_px, distort, fold_radius, undistort
 from .response import ColourModel, candidate_pixels, local_contrast, thread_response
 
 
@@ -124,6 +125,9 @@ class Calibration(PlaneMap):
     camera_height_m : float or None
         Not derivable from one frame without a known focal length: None, with a note.
     notes : list of str
+    lens_radius_px : float or None
+        Distance from the principal point (observed px) within which the threads confirm
+        the lens model (:func:`checked_lens_radius`); None = the whole image.
     """
 
     width: int
@@ -143,6 +147,14 @@ class Calibration(PlaneMap):
     thread_width_px: float = 1.0
     camera_height_m: float | None = None
     notes: list = field(default_factory=list)
+    lens_radius_px: float | None = None
+
+    def in_checked_lens(self, pts_px) -> np.ndarray:
+        """Whether observed pixels (N, 2) lie where the lens model is confirmed."""
+        p = np.atleast_2d(np.asarray(pts_px, float))
+        if self.lens_radius_px is None:
+            return np.ones(len(p), bool)
+        return np.hypot(*(p - self.K[:2, 2]).T) <= self.lens_radius_px
 
     def to_dict(self) -> dict:
         """JSON-ready dict (CALIB.json)."""
@@ -160,6 +172,7 @@ class Calibration(PlaneMap):
             "color_signs": list(self.color_signs),
             "camera_height_m": self.camera_height_m, "notes": list(self.notes),
             "lattice_y_axis_deg": self.y_axis_deg(),
+            "lens_radius_px": self.lens_radius_px,
         }
 
     def y_axis_deg(self) -> float:
@@ -183,7 +196,8 @@ class Calibration(PlaneMap):
                    n_colors=int(d.get("n_colors", 0)),
                    color_signs=tuple(int(v) for v in d.get("color_signs", (1, 1))),
                    thread_width_px=float(d.get("thread_width_px", 1.0)),
-                   camera_height_m=d.get("camera_height_m"), notes=list(d.get("notes", [])))
+                   camera_height_m=d.get("camera_height_m"), notes=list(d.get("notes", [])),
+                   lens_radius_px=d.get("lens_radius_px"))
 
 
 def normaliser(K) -> np.ndarray:
@@ -268,6 +282,30 @@ CALIBRATION_PIXELS = 50_000
 #: Thread pixels used by the region-growing stages of the calibration (the last stage
 #: uses all of them).
 COARSE_PIXELS = 25_000
+#: Region-growing schedules of the lens fit, tried in turn: radii (fractions of the
+#: half-diagonal), the lens parameters free while growing, and from which fraction of
+#: the radius on.  Wide-angle first: steps of 0.1, k1 free from 0.3, k2 and the centre
+#: from 0.5 - with steps of 0.2 and only k1 free beyond 0.5 a wide-angle lens (k1 < -0.4
+#: in the reference focal length, e.g. an action camera's k1 = -0.27, k2 = 0.04 at
+#: f = 660 px on 960x540) bends the outer threads by a whole cell past the stage's
+#: extrapolation and the fit lands a cell off (57 mm RMS over the view; 0.08 mm now;
+#: measured on 90 random artificial frames, k1 -0.35..-0.12).  The mild schedule (as
+#: before) where the wide one fails: on a 400x224 crop the lens freed at 0.3 of a small
+#: radius diverged (k2 = -38), an error on 3 frames.
+LENS_SCHEDULES = (
+    ((0.25, 0.35, 0.45, 0.55, 0.65, 0.75, 0.85), LENS_PARAMS,
+     {"k1": 0.3, "k2": 0.5, "cx": 0.5, "cy": 0.5}),
+    ((0.3, 0.5, 0.7), ("k1",), 0.5),
+)
+#: Lens check (:func:`checked_lens_radius`): a thread pixel within this of a fitted
+#: thread is explained (px); an annulus explained less than this fraction as often as
+#: the centre ends the lens's checked radius (good fits: 0.97-1.03 in every annulus;
+#: a squeezed periphery 0.15); a checked radius under this fraction of the
+#: half-diagonal is a calibration that failed.
+COVERAGE_BAND_PX = 2.0
+COVERAGE_BIN = 0.05
+COVERAGE_RATIO_MIN = 0.6
+LENS_RADIUS_MIN = 0.5
 
 
 def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
@@ -318,15 +356,39 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
         raise TrackingError("no grid found: no two periodic thread families in the frame")
     Hc = np.array([[A[0, 0] * f, A[0, 1] * f, A[0, 2]], [A[1, 0] * f, A[1, 1] * f, A[1, 2]],
                    [0.0, 0.0, 1.0]])
+    # the wide-angle schedule first; the mild one (as before 2026-11-24) where it fails
+    for i, schedule in enumerate(LENS_SCHEDULES):
+        try:
+            Hc_i, K_i, dist, info, lens_radius = _fit_lens(xs, wt, Hc, K, w, h, *schedule)
+            break
+        except TrackingError as exc:
+            if i == 0:
+                first = exc
+    else:
+        raise first
+    Hc, K = Hc_i, K_i
+    cal = _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info)
+    if lens_radius is not None:
+        cal.lens_radius_px = float(lens_radius)
+        cal.notes.append(f"wide-angle lens (k1 = {dist[0]:.3f}, k2 = {dist[1]:.3f}): the "
+                         f"threads confirm the lens model only within {lens_radius:.0f} px "
+                         f"of the principal point; the rock is not measured beyond")
+    return cal
+
+
+def _fit_lens(xs, wt, Hc, K, w, h, growing, free, free_from):
+    """Region growing from the spectrum's lattice ``Hc`` with the lens parameters
+    ``free`` (from ``free_from`` of the radius on), then the final fit on every pixel
+    and the lens check: (Hc, K, dist, info, checked radius), or TrackingError."""
     half_diag = np.hypot(w, h) / 2
-    radii = [0.3 * half_diag, 0.5 * half_diag, 0.7 * half_diag, None]
+    radii = [v * half_diag for v in growing] + [None]
     dist = (0.0, 0.0)
     # The region growing only has to land in the right basin: a fixed subsample of the
     # thread pixels does that at a fraction of the cost; the final fit uses them all.
     sub = np.sort(np.random.default_rng(0).permutation(len(xs))[:COARSE_PIXELS])
     for _attempt in range(3):
-        Hc, K, dist, info = fit_lattice(xs[sub], wt[sub], Hc, K, dist, free=("k1",),
-                                        radii=radii, band_px=3.0)
+        Hc, K, dist, info = fit_lattice(xs[sub], wt[sub], Hc, K, dist, free=free,
+                                        radii=radii, band_px=3.0, free_from=free_from)
         halved = False
         for fam in (0, 1):
             if _check_period(xs[sub], wt[sub], Hc, K, dist, fam):
@@ -335,11 +397,67 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
         if not halved:
             break
         radii = [0.5 * half_diag, None]
-    Hc, K, dist, info = fit_lattice(xs, wt, Hc, K, dist, free=("k1", "k2", "cx", "cy"),
+    Hc, K, dist, info = fit_lattice(xs, wt, Hc, K, dist, free=LENS_PARAMS,
                                     radii=(None,), band_px=2.5, iterations=4)
     if not info or info["lines_a"] < 3 or info["lines_b"] < 3:
         raise TrackingError("no grid found: fewer than 3 threads in a family could be fitted")
-    return _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info)
+    lens_radius = checked_lens_radius(xs, wt, Hc, K, dist, w, h)
+    if lens_radius is not None and lens_radius < LENS_RADIUS_MIN * half_diag:
+        raise TrackingError(
+            f"no grid found: the lens could not be calibrated - the fitted radial "
+            f"distortion (k1 = {dist[0]:.3f}, k2 = {dist[1]:.3f} at f = {K[0, 0]:.0f} px) "
+            f"explains the threads only within {lens_radius:.0f} px of the image centre "
+            f"({lens_radius / half_diag:.0%} of the half-diagonal); a lens this wide (a "
+            f"fisheye?) is not modelled")
+    return Hc, K, dist, info, lens_radius
+
+
+def checked_lens_radius(xs, wt, Hc, K, dist, width: int, height: int):
+    """Radius (px, from the principal point) within which the fitted lattice and lens
+    explain the thread pixels; None when they do over the whole image.
+
+    In annuli of :data:`COVERAGE_BIN` of the half-diagonal, the weighted fraction of the
+    candidate thread pixels ``xs`` (weights ``wt``) that lie within
+    :data:`COVERAGE_BAND_PX` of a fitted thread is compared with the central disc's
+    (inside 40 % of the half-diagonal).  A lens model that does not hold (a fit in a
+    wrong basin, or threads squeezed below the resolution in a strong wide-angle
+    lens's periphery) leaves an outer annulus's pixels between the fitted threads; the
+    radius ends at the first annulus below :data:`COVERAGE_RATIO_MIN` of the centre's,
+    or where the lens squeezes the threads radially below :data:`.lattice.MIN_PERIOD_PX`
+    apart (at the latest at its fold, :func:`.lens.fold_radius`) if that is nearer.
+    """
+    f, c = K[0, 0], K[:2, 2]
+    ab = apply_h(Hc, (undistort(xs, K, dist) - c) / f)
+    pa, pb = periods_px(Hc, f)
+    off = np.minimum(np.abs(ab[:, 0] - np.round(ab[:, 0])) * pa,
+                     np.abs(ab[:, 1] - np.round(ab[:, 1])) * pb)
+    on = off < COVERAGE_BAND_PX
+    half_diag = np.hypot(width, height) / 2
+    rr = np.hypot(*(xs - c).T) / half_diag
+    centre = rr < 0.4
+    ref = np.sum(wt[centre & on]) / max(np.sum(wt[centre]), 1e-12)
+    edges = np.arange(0.4, rr.max() + COVERAGE_BIN, COVERAGE_BIN)
+    k = np.clip(np.searchsorted(edges, rr, side="right") - 1, -1, len(edges) - 1)
+    total = np.bincount(k[~centre], wt[~centre], minlength=len(edges))
+    hit = np.bincount(k[~centre & on], wt[~centre & on], minlength=len(edges))
+    limit = None
+    for i in range(len(edges)):
+        # (an annulus with little evidence - mostly outside the image - is not judged)
+        if total[i] > 0.005 * wt.sum() and hit[i] < COVERAGE_RATIO_MIN * ref * total[i]:
+            limit = edges[i] * half_diag
+            break
+    # where the lens squeezes the threads radially closer than the shortest spacing
+    # looked for (or folds over), they no longer check it: r_d'(r) < MIN_PERIOD / period
+    k1, k2 = dist[:2]
+    r = np.linspace(0.0, fold_radius(k1, k2), 2001)
+    squeeze = 1.0 + r * r * (3.0 * k1 + 5.0 * k2 * r * r)
+    low = squeeze < MIN_PERIOD_PX / min(pa, pb)
+    if low.any():
+        r0 = r[np.argmax(low)]
+        rd0 = f * r0 * (1.0 + r0 * r0 * (k1 + k2 * r0 * r0))
+        if rd0 < np.hypot(*(corners_px(width, height) - c).T).max():
+            limit = min(limit if limit is not None else np.inf, float(rd0))
+    return limit
 
 
 def _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info) -> Calibration:

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ._stats import median
+from .._stats import median, robust_sigma
 from .lens import apply_h, undistort
 
 MIN_PERIOD_PX = 16.0  # shortest thread spacing looked for (px)
@@ -242,6 +242,7 @@ def _dq_dlens(xs, K, lens, q, which=(0, 1, 2, 3)):
     rd = np.sqrt(np.einsum("ij,ij->i", d, d))
     r2 = np.einsum("ij,ij->i", q, q)
     D = 1.0 + r2 * (3.0 * k1 + 5.0 * k2 * r2)
+    D = np.where(np.abs(D) > 1e-6, D, 1e-6)  # (at a fold of the lens: no blow-up)
     out = np.empty((len(xs), 2, len(which)))
     if 2 in which or 3 in which:
         ok = rd > 1e-12
@@ -303,7 +304,7 @@ def _rows(Hc, q, xs, ab, fam_a, fam_b, ia, ib, pa, pb, K, lens, free_idx=()):
 
 
 def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None,),
-                band_px=3.0, iterations: int = 4):
+                band_px=3.0, iterations: int = 4, free_from=0.5):
     """Refine the lattice homography (and optionally the lens) by robust Gauss-Newton.
 
     Parameters
@@ -323,9 +324,11 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
         Centre of the growing region (px); default the principal point.
     radii : sequence of float or None
         Region-growing radii (px); None = all pixels.  Lens parameters are only freed
-        once the region covers more than half the image.
+        once the region reaches ``free_from`` of the farthest pixel's radius.
     band_px : float or (float, float)
         Half-width (px) of the band around a thread whose pixels belong to it (per family).
+    free_from : float or dict
+        See ``radii``; a dict gives it per lens parameter (name -> fraction).
 
     Returns
     -------
@@ -347,7 +350,9 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
         # (the pixels of this stage's region only: the inner stages are small)
         sel = slice(None) if radius is None else np.flatnonzero(rad <= radius)
         xs_s, w_s, q_s = xs[sel], w[sel], q[sel]
-        stage_free = free_idx if radius is None or radius > 0.5 * rad.max() else []
+        stage_free = [j for j in free_idx if radius is None or radius > (
+            free_from.get(LENS_PARAMS[j], 0.5) if isinstance(free_from, dict) else free_from)
+            * rad.max()]
         for it in range(iterations):
             pa, pb = periods_px(Hc, f)
             ab = apply_h(Hc, q_s)
@@ -470,7 +475,7 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
             rp = r[part]
             if rp.size:
                 med = median(rp)
-                u[part] = (rp - med) / max(clip_px, 4.5 * 1.4826 * median(np.abs(rp - med)))
+                u[part] = (rp - med) / max(clip_px, 4.5 * robust_sigma(rp, centre=med))
         ww = w0 * np.square(np.maximum(1.0 - u * u, 0.0))
         # d(residual)/d(h0..h7), analytic (as _h_jacobian): h0..h2 or h3..h5 by family
         pw = (p / wq)[:, None]

@@ -42,7 +42,11 @@ def undistort(pts_px, K, dist, iterations: int = 6) -> np.ndarray:
     Newton's method on the radius ``r_d = r (1 + k1 r^2 + k2 r^4)`` from the second-order
     series inverse; stops once the largest step is below
     1e-12 (normalised units, ~1e-9 px) or after ``iterations`` steps.  Converges to
-    < 1e-6 px for ordinary lenses in two or three steps (quadratic convergence).
+    < 1e-6 px for ordinary lenses in two or three steps (quadratic convergence).  Points
+    where it has not converged (strong wide-angle lenses, where ``r_d(r)`` flattens
+    towards the image corners) are inverted from a table of ``r_d(r)`` up to the lens's
+    fold (:func:`fold_radius`) and polished by Newton steps; radii beyond the fold (the
+    model is not invertible there) map to the fold.
     """
     p = np.asarray(pts_px, float)
     k1, k2 = (tuple(dist) + (0.0, 0.0))[:2]
@@ -55,19 +59,52 @@ def undistort(pts_px, K, dist, iterations: int = 6) -> np.ndarray:
     # start from the inverse series r = r_d (1 - k1 r_d^2 + (3 k1^2 - k2) r_d^4): two
     # Newton steps from there reach 1e-12 for ordinary lenses (four from r_d / (...))
     r = rd * np.maximum(1.0 - rd2 * (k1 - (3.0 * k1 * k1 - k2) * rd2), 0.5)
+    r = _newton_radius(r, rd, k1, k2, iterations)
+    g = r * (1.0 + r * r * (k1 + k2 * r * r)) - rd
+    bad = ~(np.abs(g) < 1e-9)
+    if bad.any():
+        r_max = fold_radius(k1, k2)
+        grid = np.linspace(0.0, r_max, 4097)
+        rd_grid = grid * (1.0 + grid * grid * (k1 + k2 * grid * grid))
+        r[bad] = _newton_radius(np.interp(rd[bad], rd_grid, grid), rd[bad], k1, k2,
+                                iterations, r_max)
+    s = np.divide(r, rd, out=np.ones_like(rd), where=rd > 0)
+    out = np.empty(p.shape)
+    out[..., 0] = cx + f * dx * s
+    out[..., 1] = cy + f * dy * s
+    return out
+
+
+def _newton_radius(r, rd, k1, k2, iterations, r_max=None):
+    """Newton steps on ``r (1 + k1 r^2 + k2 r^4) = rd`` from ``r``, clipped to
+    ``[0, r_max]`` when given."""
+    r = np.array(r, float)
     for _ in range(iterations):
         r2 = r * r
         g = r * (1.0 + r2 * (k1 + k2 * r2)) - rd
         dg = 1.0 + r2 * (3.0 * k1 + 5.0 * k2 * r2)
         step = g / np.where(np.abs(dg) > 1e-6, dg, 1e-6)
         r -= step
+        if r_max is not None:
+            np.clip(r, 0.0, r_max, out=r)
         if step.size == 0 or np.abs(step).max() < 1e-12:
             break
-    s = np.divide(r, rd, out=np.ones_like(rd), where=rd > 0)
-    out = np.empty(p.shape)
-    out[..., 0] = cx + f * dx * s
-    out[..., 1] = cy + f * dy * s
-    return out
+    return r
+
+
+def fold_radius(k1: float, k2: float, r_limit: float = 4.0) -> float:
+    """Undistorted normalised radius where ``r_d = r (1 + k1 r^2 + k2 r^4)`` stops
+    growing (the lens "folds over"), or ``r_limit`` if it grows all the way there."""
+    # d r_d / dr = 1 + 3 k1 u + 5 k2 u^2 with u = r^2: its smallest positive real root
+    u = np.roots([5.0 * k2, 3.0 * k1, 1.0])  # (np.roots drops leading zeros)
+    u = u[(np.abs(u.imag) < 1e-12) & (u.real > 0)].real
+    return float(min(np.sqrt(u.min()), r_limit)) if u.size else float(r_limit)
+
+
+def corners_px(width: int, height: int) -> np.ndarray:
+    """The image's four outer corners (4, 2) px (pixel-centre convention)."""
+    return np.array([[-0.5, -0.5], [width - 0.5, -0.5], [-0.5, height - 0.5],
+                     [width - 0.5, height - 0.5]])
 
 
 def apply_h(H, pts) -> np.ndarray:

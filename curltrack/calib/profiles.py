@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._stats import median
+from .._stats import median, robust_sigma
 from .lens import apply_h, project, undistort
 
 
@@ -154,7 +154,7 @@ class ThreadPoints:
 def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0,
                    mask=None, margin_px: float = 3.0,
                    gap_px=(4.0, 4.0), blur_px=(0.0, 0.0), seg_px: float = 40.0,
-                   max_profiles: int | None = None):
+                   max_profiles: int | None = None, max_radius_px: float | None = None):
     """Sub-pixel thread points of a frame near the predicted lattice ``Hc``.
 
     Parameters
@@ -187,6 +187,9 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         as good), or of the profiles of a thread averaged whole.
     mask : (H, W) uint8, optional
         Nonzero = ignore.
+    max_radius_px : float, optional
+        Only profiles within this distance (px) of the principal point (the part of a
+        wide-angle lens the calibration confirmed, ``Calibration.lens_radius_px``).
 
     Returns
     -------
@@ -250,6 +253,8 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     lim = half + margin_px
     inside = finite & (centre[:, 0] > lim) & (centre[:, 0] < w - 1 - lim) \
         & (centre[:, 1] > lim) & (centre[:, 1] < h - 1 - lim)
+    if max_radius_px is not None:  # (where the lens model is confirmed)
+        inside &= np.hypot(centre[:, 0] - K[0, 2], centre[:, 1] - K[1, 2]) < max_radius_px
     if mask is not None:
         rows_in = np.flatnonzero(inside)
         ci = np.rint(centre[rows_in]).astype(np.intp)  # (inside the image)
@@ -335,7 +340,7 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         if len(peak[rows_j]):
             aj = away[rows_j]
             if np.count_nonzero(aj) > 0.1 * aj.size:
-                noise[j] = 1.4826 * median(np.abs(det[rows_j][aj])) + 1e-3
+                noise[j] = robust_sigma(det[rows_j][aj], centre=0.0) + 1e-3
             rel_floor[j] = 0.25 * median(peak[rows_j])
     floor = 0.3 * sig.max(axis=1, where=keep, initial=0.0)
     s = np.where(keep, np.maximum(sig - floor[:, None], 0.0), 0.0)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._stats import robust_sigma
 BG_SIGMA_PX = 3.0  # local background scale; threads are a few px wide at most
 
 
@@ -87,7 +88,7 @@ def noise_threshold(resp, mask=None, n_sigma: float = 3.0) -> float:
     if mask is not None:
         sub = sub[mask[::3, ::3] == 0]
     med = float(np.median(sub))
-    mad = float(np.median(np.abs(sub - med))) * 1.4826
+    mad = robust_sigma(sub, centre=med)
     return med + n_sigma * max(mad, 0.5)
 
 

@@ -13,14 +13,14 @@ Per frame:
    lost frame, a jerk) or the threads are not where predicted, a coarse pass first, with
    profiles spanning almost a whole cell, snaps to the nearest lattice alignment;
 3. check the integer cell index: the snap's correction relative to the prediction must
-   stay below ``AMBIGUOUS_CELLS`` unless the thread colour sequence confirms the index
+   stay below the settings' ``ambiguous_cells`` unless the thread colour sequence confirms the index
    (or says by how many cells it slipped, when only one shift fits the motion).
 
 Otherwise the pose is returned with ``ok = False`` and a message, never a silent jump by
 a cell; the next frames are predicted from the last trusted poses.
 
 The colours tell the index only modulo the number of colours, and a prediction made
-across a gap (more than ``STALE_FRAMES`` frames without a grid, while camera and rock may
+across a gap (more than ``stale_frames`` frames without a grid, while camera and rock may
 have moved many cells) can be off by whole cells however well the snap fits.  Such a
 pose starts a new *segment* (``GridPose.segment``): the cell index is continuous within
 a segment, and the offset between segments is left to evidence from outside the grid
@@ -41,7 +41,6 @@ from .lattice import fit_points, periods_px
 from .profiles import sample_threads
 from .lens import apply_h
 
-AMBIGUOUS_CELLS = 0.35  # unexplained jump (cells) beyond which the index is not trusted
 PROFILE_STEP_PX = 18.0  # spacing of the cross profiles along each thread (px), at least
 PROFILES_PER_CELL = 2.5  # at most this many profiles per cell along a thread: a sharper
 # (larger) view measures each profile as well in px, hence better in metres
@@ -54,37 +53,20 @@ COLOUR_CHECK_EVERY = 10  # frames between routine checks of the thread colour se
 COARSE_STEP_PX = 40.0  # the same for the wide profiles of the coarse snap
 FINE_HALF_PX = 5.0  # half-length (px) of the fine profiles before blur: thread + prediction
 SHUTTER = 0.5  # assumed exposure (fraction of a frame) for the motion-blur filter
-
-
-#: Largest move (cells) of the motion prediction by an anchor (the rock's markers): a
-#: shaking hand moves the view by a few px to ~0.2 cell per frame; a larger move would
-#: rather be a wrong anchor, and the cell index must not rest on it.
-ANCHOR_MAX_CELLS = 0.3
-#: ... and after frames without a grid (a broom, a blur), when the camera's own motion
-#: prediction has gone stale: the rock's path on the ice is then the better guide.
-ANCHOR_MAX_CELLS_STALE = 1.5
-STALE_FRAMES = 3  # frames since the last grid after which the motion prediction holds
 TURN_RETRIES_DEG = (4.0, -4.0, 8.0, -8.0)  # camera turns tried when the grid is lost
-#: A frame whose thread points miss the fitted lattice by more than POOR_FIT_FACTOR x
-#: the typical residual of the last POOR_FIT_FRAMES accepted frames (and by more than
-#: POOR_FIT_MIN_PX) is not measured: on rendered handheld shots with a broom and a faint
-#: thread colour such fits (1.0-1.4 px against 0.3 typical) put the rock 4-24 mm off.
-POOR_FIT_FACTOR = 2.5
-POOR_FIT_MIN_PX = 0.6
-POOR_FIT_FRAMES = 30
-#: A coarse snap is trusted only when at least this fraction of its profiles (in each
-#: family) found a thread: right snaps find >= 0.9, snaps onto the wrong lattice
-#: alignment after a sudden camera turn 0.1-0.3 (measured on erratic turns of +-30 deg).
-MIN_FOUND_SNAP = 0.5
-#: A fine measurement from the prediction is kept only when at least this fraction of
-#: its profiles (in each family) found a thread; else a coarse snap is made first.  A
-#: jolt of a handheld camera that leaves threads near the ends of the fine profiles
-#: shows as ~0.75 found and a homography ~1 px off (rendered handheld_fast, frame 9:
-#: 2.6 mm); steady frames find >= 0.9.
-MIN_FOUND_FINE = 0.8
-#: ... but one that found at least this fraction is kept when the snap does worse
-#: (threads of a colour faint against the ice are found by the fine profiles only).
-MIN_FOUND_FALLBACK = 0.6
+# The acceptance thresholds (ambiguous jumps, anchors, poor fits, fractions of threads
+# found) are the rig's TrackingSettings (curltrack.settings), read as self.settings.
+
+
+def poor_fit(rms_px: float, typical_px: float, settings) -> str:
+    """Why a grid fit whose threads miss the lattice by ``rms_px`` (RMS, px) is refused
+    against ``typical_px`` (the median residual of the last accepted frames), or "".
+
+    Refused above ``settings.poor_fit_factor`` x typical and ``settings.poor_fit_min_px``.
+    """
+    if not rms_px > max(settings.poor_fit_min_px, settings.poor_fit_factor * typical_px):
+        return ""
+    return f"grid fit poor (thread residual {rms_px:.2f} px, {typical_px:.2f} px typical)"
 
 
 def _origin(Hc):
@@ -167,6 +149,7 @@ class GridTracker:
     def __init__(self, calib: Calibration, rig):
         self.calib = calib
         self.rig = rig
+        self.settings = rig.tracking
         self.K = calib.K
         self.dist = tuple(calib.dist)
         self.sx, self.sy = calib.spacing_x_m, calib.spacing_y_m
@@ -188,7 +171,7 @@ class GridTracker:
         if len(hist) < 2 or hist[-2][0] is None:
             return hist[-1][1]
         (i0, _, P0), (i1, H1, P1) = hist[-2], hist[-1]
-        if index - i1 > STALE_FRAMES:
+        if index - i1 > self.settings.stale_frames:
             return H1  # (a shaking camera's velocity means nothing that far ahead)
         import cv2
 
@@ -196,10 +179,12 @@ class GridTracker:
         return cv2.getPerspectiveTransform(self._ref.astype(np.float32),
                                            P.astype(np.float32)).astype(float)
 
-    def _anchored(self, H_pred, px_u, ice_pred, max_cells=ANCHOR_MAX_CELLS) -> np.ndarray:
+    def _anchored(self, H_pred, px_u, ice_pred, max_cells=None) -> np.ndarray:
         """``H_pred`` moved on the ice so that it maps ``px_u`` (undistorted px) onto
-        ``ice_pred`` (on average), or unchanged when that move is over ``max_cells`` or
-        not finite."""
+        ``ice_pred`` (on average), or unchanged when that move is over ``max_cells``
+        (default ``settings.anchor_max_cells``) or not finite."""
+        if max_cells is None:
+            max_cells = self.settings.anchor_max_cells
         seen = apply_h(H_pred, np.asarray(px_u, float))
         d = np.mean(np.asarray(ice_pred, float) - seen, axis=0)
         cells = np.abs(d) / (self.sx, self.sy)
@@ -231,7 +216,8 @@ class GridTracker:
             half = [0.45 * p for p in periods_px(Hc, f)]
             obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model,
                                  half, step_px=COARSE_STEP_PX, mask=mask, gap_px=gap,
-                                 blur_px=SHUTTER * blur)
+                                 blur_px=SHUTTER * blur,
+                                 max_radius_px=self.calib.lens_radius_px)
             if obs is None or np.sum(obs.fam == 0) < 6 or np.sum(obs.fam == 1) < 6:
                 return Hc, None, obs
             Hc, _ = fit_points(obs.xy, obs.w, obs.fam, obs.idx, Hc, self.K, self.dist,
@@ -245,7 +231,8 @@ class GridTracker:
         step = max(PROFILE_STEP_PX, min(periods) / PROFILES_PER_CELL)
         obs = sample_threads(image_bgr, Hc, self.K, self.dist, self.calib.colour_model, half,
                              step_px=step, mask=mask, gap_px=gap,
-                             blur_px=SHUTTER * blur, max_profiles=MAX_PROFILES)
+                             blur_px=SHUTTER * blur, max_profiles=MAX_PROFILES,
+                             max_radius_px=self.calib.lens_radius_px)
         if obs is None or np.sum(obs.fam == 0) < 10 or np.sum(obs.fam == 1) < 10:
             return Hc, None, obs
         Hc, info = fit_points(obs.xy, obs.w, obs.fam, obs.idx, Hc, self.K, self.dist,
@@ -268,8 +255,8 @@ class GridTracker:
             where they are predicted on the ice (lattice-frame m): the rock's markers,
             whose motion on the ice is smooth even when the camera's is not.  The motion
             prediction is moved so that it maps the one onto the other (by less than
-            ``ANCHOR_MAX_CELLS``, ``ANCHOR_MAX_CELLS_STALE`` after STALE_FRAMES without a
-            grid; else the anchor is ignored), which follows a shaking camera without a
+            the settings' ``anchor_max_cells``, ``anchor_max_cells_stale`` after
+            ``stale_frames`` without a grid; else the anchor is ignored), which follows a shaking camera without a
             coarse search and re-finds the grid after a loss.
 
         Returns
@@ -285,12 +272,13 @@ class GridTracker:
             raise TrackingError(f"frame size {shape} differs from the calibration's "
                                 f"{self.calib.width}x{self.calib.height} BGR",
                                 where=f"frame {index}")
+        st = self.settings
         H_pred = self._predict(index)
         if anchor is not None:
             last = self._history[-1][0]
-            stale = last is not None and index - last > STALE_FRAMES
+            stale = last is not None and index - last > st.stale_frames
             H_pred = self._anchored(H_pred, *anchor, max_cells=(
-                ANCHOR_MAX_CELLS_STALE if stale else ANCHOR_MAX_CELLS))
+                st.anchor_max_cells_stale if stale else st.anchor_max_cells))
         Hc_pred = cells_from_metric(H_pred, K, self.sx, self.sy)
 
         def failed(msg):
@@ -307,9 +295,9 @@ class GridTracker:
             moved = np.abs(_origin(Hc) - _origin(Hc_pred)) * periods_px(Hc, f)
             # without the coarse snap the profiles see only +-FINE_HALF_PX around it
             if moved.max() < FINE_HALF_PX - 2.0:
-                if info["ok_fraction"] > MIN_FOUND_FINE:
+                if info["ok_fraction"] > st.min_found_fine:
                     break
-                if info["ok_fraction"] > MIN_FOUND_FALLBACK:
+                if info["ok_fraction"] > st.min_found_fallback:
                     fallback = Hc, info, obs
         n_col = self.calib.n_colors if self.calib.colors_resolved else 0
 
@@ -318,7 +306,7 @@ class GridTracker:
             # else than the lattice (e.g. after a sudden turn) - unless it found the
             # threads of one colour: then the others are just faint (a thread colour
             # close to the ice's, blurred across).
-            return min(obs.found_best_class(n_col)) < MIN_FOUND_SNAP
+            return min(obs.found_best_class(n_col)) < st.min_found_snap
 
         if attempt and fallback is not None and (info is None or weak_snap(obs)):
             # the snap found less (faint threads of one colour are missed by the wide
@@ -336,11 +324,9 @@ class GridTracker:
         if attempt and weak_snap(obs):
             return failed(f"grid not followed (a snap found only "
                           f"{100 * info['ok_fraction']:.0f} % of the expected threads)")
-        if len(self._rms_px) >= 5:
-            typical = float(np.median(self._rms_px))
-            if info["rms_px"] > max(POOR_FIT_MIN_PX, POOR_FIT_FACTOR * typical):
-                return failed(f"grid fit poor (thread residual {info['rms_px']:.2f} px, "
-                              f"{typical:.2f} px typical)")
+        typical = float(np.median(self._rms_px)) if len(self._rms_px) >= 5 else None
+        if typical is not None and (why := poor_fit(info["rms_px"], typical, st)):
+            return failed(why)
         jump = _origin(Hc) - _origin(Hc_pred)
         # The colours are read when the index could have slipped (a coarse snap, a large
         # correction) and every COLOUR_CHECK_EVERY frames as a confirmation.
@@ -361,21 +347,21 @@ class GridTracker:
             pose.message = "cell index uncertain: " + note
             return pose
         unchecked = np.abs(jump) * ~np.array(confirmed)
-        if np.max(unchecked) > AMBIGUOUS_CELLS:
+        if np.max(unchecked) > st.ambiguous_cells:
             pose.ok = False
             pose.message = (f"cell index ambiguous: the grid moved {np.max(unchecked):.2f} "
                             "cells more than predicted and the thread colours cannot tell")
             return pose
         last = self._history[-1][0]
-        if ((last is not None and index - last > STALE_FRAMES) or np.any(k != 0)
-                or np.max(np.abs(jump)) > AMBIGUOUS_CELLS):
+        if ((last is not None and index - last > st.stale_frames) or np.any(k != 0)
+                or np.max(np.abs(jump)) > st.ambiguous_cells):
             # the index rests on a stale prediction or on the colours (modulo their
             # number): continuous from here on, but its offset is not known here
             self.segment += 1
         pose.segment = self.segment
         err = float(np.hypot(*(np.asarray(jump) * (pa, pb))))
         self._pred_err_px = 0.5 * self._pred_err_px + 0.5 * err
-        self._rms_px = (self._rms_px + [info["rms_px"]])[-POOR_FIT_FRAMES:]
+        self._rms_px = (self._rms_px + [info["rms_px"]])[-st.poor_fit_frames:]
         self._history = (self._history + [(index, H, apply_h(H, self._ref))])[-2:]
         return pose
 

@@ -19,28 +19,47 @@ def calibrate(
     frame: int = typer.Option(0, "--frame", min=0, help="Frame to calibrate on (0-based)."),
     overlay: Path = typer.Option(None, "--overlay", help="PNG: the frame with the fitted "
                                  "threads, origin and axes drawn."),
+    debug_dir: Path = typer.Option(None, "--debug-dir", help="Folder for a PNG of what was "
+                                   "found on the frame (threads, markers, track's verdict), "
+                                   "written also when the frame is refused."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
 ):
     """Find the thread lattice, lens distortion and image -> ice homography on one frame.
 
-    Units: metres on the ice, pixels in the image (origin at the centre of the top-left
+    The frame is judged as `track` judges it (the rock masked by its markers, the rig's
+    [tracking] thresholds): a frame `track` would give ok = 0 is refused with track's
+    reason (exit 1).  Units: metres on the ice, pixels in the image (origin at the centre of the top-left
     pixel).  The homography maps undistorted pixels to the lattice frame (axes along the
     threads, origin at a thread crossing, x, y, up right-handed).
     """
     from .._atomic import atomic_path, write_json
-    from ..calib import calibrate_frame
     from ..errors import TrackingError
     from ..rig import load_rig
+    from ..track.check import check_frames, frame_reader
     from ..video import read_frame
 
     check_outputs([source, rig], [("-o", output), ("--overlay", overlay)])
     r = load_rig(rig)
-    image = read_frame(source, frame)
-    try:
-        cal = calibrate_frame(image, r)
-    except TrackingError as exc:
-        raise TrackingError(exc.message, path=source, where=f"frame {frame}") from None
-    data = {"source": str(source), "frame": frame, **cal.to_dict()}
+    image = read_frame(source, frame)  # (a frame out of range: the reader's error)
+    read = frame_reader(source, fps_override=r.fps)
+    verdict, = check_frames(read, [frame], r)
+    if debug_dir is not None:
+        from ..track.overlay import write_verdict_frame
+
+        debug_dir.mkdir(parents=True, exist_ok=True)
+        write_verdict_frame(debug_dir, image, verdict, r)
+    cal = verdict.calibration
+    if cal is None:  # (the grid is what calibrate needs; markers only mask the rock)
+        why = verdict.grid_status
+        if why.startswith("grid not found ("):  # calibrate's own words for it
+            why = "no grid found: " + why[len("grid not found ("):-1]
+        elif not why.startswith("grid"):  # a blank frame
+            why = f"no grid found: {why}"
+        raise TrackingError(why, path=source, where=f"frame {frame}")
+    if not verdict.ok and not quiet:
+        typer.echo(f"note: track would give this frame ok = 0: {verdict.status}", err=True)
+    data = {"source": str(source), "frame": frame, "calibrated_on_frame": verdict.calibrated_on,
+            "track_verdict": verdict.status or "ok", **cal.to_dict()}
     write_json(output, data)
     if overlay:
         import cv2

@@ -16,6 +16,8 @@ def doctor(
     rig: Path = typer.Option(..., "--rig", help="Rig TOML: grid, rock, markers, camera."),
     samples: int = typer.Option(6, "--samples", min=1, max=50,
                                 help="Frames examined, spread over the video."),
+    frames: str = typer.Option(None, "--frames", help="Examine these frames instead, e.g. "
+                               "100,201 or 5-9: each is judged as track judges it."),
     as_json: bool = typer.Option(False, "--json", help="Print the checklist as JSON."),
     output: Path = typer.Option(None, "-o", "--output", help="Also write the JSON here."),
 ):
@@ -23,6 +25,8 @@ def doctor(
     colour, the thread grid (spacing px, residual px), the rock's size (px) and the camera
     height implied by the parallax (m).
 
+    Each frame examined is judged as `track` judges it (the same steps and the rig's
+    [tracking] thresholds): the `frames` line says which track will give ok = 0, and why.
     Prints a checklist (✓ ok, ! warning, ✗ fatal) with advice.  Exit status 1 when
     something is fatal (track would fail), 0 otherwise.
     """
@@ -32,8 +36,11 @@ def doctor(
     from ..doctor import diagnose
     from ..rig import load_rig
 
+    from .track import parse_frame_list
+
     check_outputs([video, rig], [("-o", output)])
-    report = diagnose(video, load_rig(rig), n_samples=samples)
+    chosen = parse_frame_list(frames, where="--frames") if frames else None
+    report = diagnose(video, load_rig(rig), n_samples=samples, frames=chosen)
     data = report.to_dict()
     if output is not None:
         write_json(output, data)

@@ -24,9 +24,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..errors import FitError
+from ..fitting import parameters, solve, vector
 from ..physics.params import SHOT_MODEL, covariance
 from ..rig import default_rig
 from .candidates import Candidate, effects_for
@@ -321,15 +321,18 @@ class JointModel:
         hi = np.array([self.bounds[n][1] if self.bounds[n][1] is not None else np.inf
                        for n in self.free])
         p0 = np.clip(self.vector(), lo + 1e-12 * (np.abs(lo) + 1), hi - 1e-12 * (np.abs(hi) + 1))
+        params = parameters(zip(self.free, zip(lo, hi), p0))
         cache = {}
 
-        def fun(p):
+        def fun(pars):
+            p = vector(pars, self.free)
             vals = self.with_vector(p)
             vec, preds = self._model_vector(vals)
             cache["p"], cache["vec"], cache["preds"] = p.copy(), vec, preds
             return self.whiten(data - vec)
 
-        def jac(p):
+        def jac(pars):
+            p = vector(pars, self.free)
             vals = self.with_vector(p)
             if "p" in cache and np.array_equal(cache["p"], p):
                 vec, preds = cache["vec"], cache["preds"]
@@ -337,13 +340,12 @@ class JointModel:
                 vec, preds = self._model_vector(vals)
             return -self.whiten(self.jacobian_raw(vals, vec, preds))
 
-        try:
-            res = least_squares(fun, p0, jac=jac, bounds=(lo, hi), x_scale="jac",
-                                max_nfev=max_nfev, method="trf", ftol=tol, xtol=tol, gtol=tol)
-        except (ValueError, FloatingPointError, ZeroDivisionError) as exc:
-            raise FitError(f"model fit failed ({exc})".splitlines()[0], path=name) from None
-        self.values = self.with_vector(res.x)
-        self.nfev = (res.nfev, res.njev)
+        # trust-region reflective inside the bounds, its own Jacobian, scaled by it
+        res = solve(fun, params, "least_squares", label="model fit", path=name, jac=jac,
+                    max_nfev=max_nfev, nan_policy="propagate", x_scale="jac",
+                    ftol=tol, xtol=tol, gtol=tol)
+        self.values = self.with_vector(res.x)  # (SciPy's solution as it returned it)
+        self.nfev = (res.least_squares_nfev, res.njev)
         vec, preds = self._model_vector(self.values)
         r_raw = data - vec
         r = self.whiten(r_raw)

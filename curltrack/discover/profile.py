@@ -127,6 +127,8 @@ def profile_parameter(model, fit, name, scale, unit):
         qv, _ = _parabola_vertex(prof.points, qb)
         if qv is None:   # no minimum bracketed: step downhill
             others = [q for q in prof.points if q != qb]
+            if not others:  # (both first steps outside the bounds: nothing to walk on)
+                break
             qv = qb + (qb - min(others, key=lambda q: abs(q - qb)))
         qv = float(np.clip(qv, qb - MAX_REACH * spread, qb + MAX_REACH * spread))
         if not _inside(qv, lo, hi) or abs(qv - qb) < 0.1 * s0:

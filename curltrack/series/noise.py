@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._stats import MAD_TO_SIGMA, robust_sigma  # noqa: F401  (re-exported)
 from ..errors import SeriesError
 
 _RHO_GRID = np.linspace(0.0, 0.95, 96)
@@ -81,16 +82,8 @@ class Noise:
                 "inflation": self.inflation, "tau": self.tau}
 
 
-#: sigma / MAD of a normal distribution, 1 / Phi^-1(3/4)
-MAD_TO_SIGMA = 1.482602218505602
-
-
-def robust_sigma(v, centre=None) -> float:
-    """1-sigma of normal noise from the median absolute deviation about ``centre``
-    (default: the median) -- a spread that a few outliers (a pick, a stop) do not move."""
-    v = np.asarray(v, dtype=float)
-    c = np.median(v) if centre is None else centre
-    return MAD_TO_SIGMA * float(np.median(np.abs(v - c)))
+# robust_sigma (1.4826 x MAD, a spread that a few outliers - a pick, a stop - do not
+# move) is curltrack._stats's, the one definition (the tracker uses it too).
 
 
 def white_sigma(q, ok=None, min_diffs: int = 1) -> float:

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..calib._stats import median
+from .._stats import median, robust_sigma
 from ..rig import Rig, parse_color
 
 __all__ = ["MarkerDetector", "MarkerFrame", "lab_of_rgb"]
@@ -438,7 +438,7 @@ class MarkerDetector:
         dd = float(d @ d)
         if dd < 25.0:  # < 5 grey levels apart: no usable contrast
             return None
-        noise = 1.4826 * float(median(np.abs(win_ring - bg[:, None]), axis=1).mean())
+        noise = float(robust_sigma(win_ring, centre=bg[:, None], axis=1).mean())
         # Project on the marker colour's chroma (d without its grey component) when it
         # has one: then shading of a neutral background (a cup ring, a light gradient on
         # grey granite or white ice) does not leak into the coverage and bias the centroid.

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._stats import robust_sigma
+
 __all__ = ["outline_radius", "scale_check", "scale_check_resolution",
            "OUTLINE_HEIGHT_FRACTION"]
 
@@ -32,20 +34,10 @@ N_DIRECTIONS = 48
 #: Radial search band (fractions of the nominal radius) and step (m).
 R_BAND = (0.85, 1.25)
 R_STEP_M = 0.001
-#: Uncertainty of a rig's camera height taken as exact (relative): tape-measured.
-RIG_HEIGHT_REL_ERR = 0.05
-#: A discrepancy beyond this many sigma (and beyond the floors below) stops tracking.
-N_SIGMA = 5.0
-#: Smallest relative discrepancy of the markers' scale ever reported (the markers are
-#: placed by hand to ~1 mm over ~0.16 m).
-MIN_DISCREPANCY = 0.012
-#: ... and of the outline's: its edge is found to ~1-2 mm of the striking band (the
-#: shadow at its foot, motion blur, the curved side), i.e. ~1 % of the radius: measured
-#: +0.7 to +1.3 % on the renderer's set-ups with a right rig.
-MIN_OUTLINE_DISCREPANCY = 0.03
-#: Highest plausible camera (m): markers that look less than h/MAX_CAMERA_HEIGHT_M larger
-#: than their layout contradict the grid's scale.
-MAX_CAMERA_HEIGHT_M = 8.0
+# The check's thresholds - the rig camera height's relative error, the number of sigma,
+# the markers' and the outline's discrepancy floors, the highest plausible camera - are
+# the rig's TrackingSettings (curltrack.settings: rig_height_rel_err, scale_check_sigma,
+# scale_min_layout_discrepancy, scale_min_outline_discrepancy, max_camera_height_m).
 
 
 def _profiles(image, H_inv, K, dist, centre, radius, n_dir):
@@ -114,7 +106,7 @@ def outline_radius(image, H, K, dist, centre, radius_m: float) -> tuple[float, n
         centre_fit = sol[:2]
         rad = float(np.sqrt(sol[2] + centre_fit @ centre_fit))
         res = np.hypot(*(p - centre_fit).T) - rad
-        mad = 1.4826 * np.median(np.abs(res[ok])) + 1e-5
+        mad = robust_sigma(res[ok], centre=0.0) + 1e-5
         ok &= np.abs(res) < 3 * mad
     return rad, centre_fit
 
@@ -122,10 +114,10 @@ def outline_radius(image, H, K, dist, centre, radius_m: float) -> tuple[float, n
 def scale_check(layout_scale, outline_scale, rig, h_eff: float, depth_eff: float) -> str:
     """Why the grid's metric scale contradicts the rock's other rulers, or "".
 
-    Each test allows ``N_SIGMA`` times the measurement's own scatter (frames are
-    averaged) or a floor for what scatter does not show (hand-placed markers, the
+    Each test allows ``scale_check_sigma`` times the measurement's own scatter (frames
+    are averaged) or a floor for what scatter does not show (hand-placed markers, the
     outline's edge bias and height), whichever is larger, plus twice the effect of a
-    rig camera height 5 % off.
+    rig camera height ``rig_height_rel_err`` off (``rig.tracking``).
 
     Parameters
     ----------
@@ -175,8 +167,12 @@ def scale_check_resolution(layout_scale, outline_scale, rig, h_eff: float,
 
 def _verdict(s_m, e_m, s_o, e_o, rig, h_eff, depth_eff) -> str:
     """:func:`scale_check` on the combined rulers (scales and their standard errors)."""
+    st = rig.tracking
+    n_sigma = st.scale_check_sigma
     if not np.isfinite(s_m):
         return ""
+    st = rig.tracking
+    n_sigma = st.scale_check_sigma
     z = OUTLINE_HEIGHT_FRACTION * rig.rock_height_m + depth_eff
     spacing = f"{rig.spacing_x_m:g} x {rig.spacing_y_m:g} m"
     head = f"the grid's scale disagrees with the rock: against the rig's grid spacing ({spacing})"
@@ -184,13 +180,13 @@ def _verdict(s_m, e_m, s_o, e_o, rig, h_eff, depth_eff) -> str:
             "then [rock].diameter_m and the [[markers]] positions")
     if rig.camera_height_m is not None:
         H = rig.camera_height_m + depth_eff
-        dH = RIG_HEIGHT_REL_ERR * H
+        dH = st.rig_height_rel_err * H
         tests = [("markers", s_m * (H - h_eff) / H, e_m * (H - h_eff) / H,
-                  MIN_DISCREPANCY + 2 * s_m * h_eff / H ** 2 * dH)]
+                  st.scale_min_layout_discrepancy + 2 * s_m * h_eff / H ** 2 * dH)]
         if np.isfinite(s_o):
             tests.append(("rock outline", s_o * (H - z) / H, e_o * (H - z) / H,
-                          MIN_OUTLINE_DISCREPANCY + 2 * s_o * z / H ** 2 * dH))
-        lim = {name: max(N_SIGMA * e, floor) for name, _, e, floor in tests}
+                          st.scale_min_outline_discrepancy + 2 * s_o * z / H ** 2 * dH))
+        lim = {name: max(n_sigma * e, floor) for name, _, e, floor in tests}
         bad = [(name, f) for name, f, _, _ in tests if abs(f - 1) > lim[name]]
         if not bad:
             return ""
@@ -207,11 +203,11 @@ def _verdict(s_m, e_m, s_o, e_o, rig, h_eff, depth_eff) -> str:
                 "[[markers]] positions")
     # no camera height: the height the markers imply must be plausible and explain
     # the outline
-    least = 1.0 + h_eff / (MAX_CAMERA_HEIGHT_M + depth_eff)
-    if s_m < least - max(N_SIGMA * e_m, 0.003):
+    least = 1.0 + h_eff / (st.max_camera_height_m + depth_eff)
+    if s_m < least - max(n_sigma * e_m, 0.003):
         return (f"{head} the markers measure {(s_m - 1) * 100:+.1f} % of their layout, "
                 f"where markers {rig.rock_height_m:g} m above the ice must look at least "
-                f"{(least - 1) * 100:.1f} % larger (a camera below {MAX_CAMERA_HEIGHT_M:g} m):"
+                f"{(least - 1) * 100:.1f} % larger (a camera below {st.max_camera_height_m:g} m):"
                 f" the grid spacing is likely too small; {what}")
     if not np.isfinite(s_o) or s_m <= 1.0:
         return ""
@@ -219,7 +215,7 @@ def _verdict(s_m, e_m, s_o, e_o, rig, h_eff, depth_eff) -> str:
     pred = Hm / (Hm - z)
     dpred_ds = z * h_eff / ((s_m - 1.0) ** 2 * (Hm - z) ** 2)  # d pred / d s_m
     D = s_o / pred - 1.0
-    lim = max(N_SIGMA * np.hypot(e_o, dpred_ds * e_m), MIN_OUTLINE_DISCREPANCY)
+    lim = max(n_sigma * np.hypot(e_o, dpred_ds * e_m), st.scale_min_outline_discrepancy)
     if abs(D) <= lim:
         return ""
     # (which ruler is wrong cannot be told without the camera height: both named)
@@ -249,6 +245,6 @@ def _robust_mean(v) -> tuple[float, float]:
     if v.size < 5:  # (doctor's few frames: no scatter to speak of; the floors apply)
         return float(np.median(v)), 0.0
     med = np.median(v)
-    mad = 1.4826 * np.median(np.abs(v - med)) or 1e-6
+    mad = robust_sigma(v, centre=med) or 1e-6
     v = v[np.abs(v - med) < 4 * mad]
     return float(v.mean()), float(v.std() / np.sqrt(v.size))

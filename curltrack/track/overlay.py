@@ -15,7 +15,8 @@ import numpy as np
 from .._atomic import atomic_path, verify_video
 from ..errors import VideoError
 
-__all__ = ["write_overlay", "overlay_frames", "encode_h264", "write_debug_frames", "TRAIL_BGR"]
+__all__ = ["write_overlay", "overlay_frames", "encode_h264", "write_debug_frames",
+           "write_verdict_frame", "TRAIL_BGR"]
 
 #: Trail colour (BGR), drawn without anti-aliasing so that its pixels can be found.
 TRAIL_BGR = (255, 0, 255)
@@ -239,7 +240,6 @@ def write_debug_frames(video_path, outdir, frames, records, series, calib, rig):
 
     Returns the paths written (``outdir/frame_NNNNNN.png``).
     """
-    import cv2
     from pathlib import Path
 
     outdir = Path(outdir)
@@ -252,12 +252,6 @@ def write_debug_frames(video_path, outdir, frames, records, series, calib, rig):
         rec = by_frame[f]
         for _, img in overlay_frames(video_path, records, series, calib, rig, start=f,
                                      end=f + 1):
-            if rec.markers_px is not None:
-                for i, p in enumerate(rec.markers_px):
-                    if np.isfinite(p).all():
-                        cv2.putText(img, f"m{i}", (int(p[0]) + 9, int(p[1]) - 9),
-                                    cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
-                                    cv2.LINE_AA)
             row = data.loc[f] if f in data.index else None
             found = 0 if rec.markers_px is None else int(np.isfinite(rec.markers_px).all(1).sum())
             lines = [f"status: {rec.status or 'measured'}",
@@ -267,14 +261,47 @@ def write_debug_frames(video_path, outdir, frames, records, series, calib, rig):
                 lines.append(f"sigma_xy {row['sigma_xy'] * 1e3:.2f} mm, sigma_theta "
                              f"{np.degrees(row['sigma_theta']):.2f} deg, quality "
                              f"{row['quality']:.2f}")
-            for k, text in enumerate(lines, start=1):
-                _caption(img, text, line=k)
-            path = outdir / f"frame_{f:06d}.png"
-            with atomic_path(path) as tmp:
-                if not cv2.imwrite(str(tmp), img):
-                    raise VideoError("cannot write the debug image", path=path)
-            written.append(path)
+            written.append(_write_debug_png(outdir, f, img, rec.markers_px, lines))
     return written
+
+
+def _write_debug_png(outdir, frame: int, img, markers_px, lines):
+    """Label the markers (m0, m1, ...), caption ``lines`` (from the second line down) and
+    write ``outdir/frame_NNNNNN.png`` atomically; returns its path."""
+    import cv2
+    from pathlib import Path
+
+    if markers_px is not None:
+        for i, p in enumerate(markers_px):
+            if np.isfinite(p).all():
+                cv2.putText(img, f"m{i}", (int(p[0]) + 9, int(p[1]) - 9),
+                            cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
+    for k, text in enumerate(lines, start=1):
+        _caption(img, text, line=k)
+    path = Path(outdir) / f"frame_{frame:06d}.png"
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), img):
+            raise VideoError("cannot write the debug image", path=path)
+    return path
+
+
+def write_verdict_frame(outdir, image, verdict, rig):
+    """PNG of what ``calibrate`` / ``doctor`` found on one frame
+    (:class:`curltrack.track.check.FrameVerdict`): the fitted threads, the markers, the
+    verdict and the grid's numbers; returns its path (``outdir/frame_NNNNNN.png``)."""
+    from ..calib.overlay import draw_grid
+
+    cal = verdict.calibration
+    img = draw_grid(image, cal) if cal is not None else image.copy()
+    found = sum(verdict.markers_found)
+    lines = [f"frame {verdict.frame}: {'measurable' if verdict.ok else verdict.status}",
+             f"markers found {found}/{len(rig.markers)}; grid " + (
+                 f"spacing {cal.spacing_px:.1f} px, residual {cal.residual_px:.2f} px"
+                 + (f" (lens from frame {verdict.calibrated_on})"
+                    if verdict.calibrated_on != verdict.frame else "")
+                 if cal is not None else verdict.grid_status)]
+    _caption(img, "curltrack calibrate", line=0)
+    return _write_debug_png(outdir, verdict.frame, img, verdict.markers_px, lines)
 
 
 _encode = encode_h264

@@ -24,25 +24,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._stats import robust_sigma
+
 __all__ = ["similarity_fit", "camera_centre", "focal_for_height", "HeightEstimate",
            "estimate_height", "correct_parallax", "layout_scale_mismatch",
-           "ICE_REFRACTIVE_INDEX", "LAYOUT_SCALE_RANGE"]
+           "ICE_REFRACTIVE_INDEX"]
 
 #: Threads under ``depth`` of ice look ``depth / n`` deep (paraxial refraction).
 ICE_REFRACTIVE_INDEX = 1.31
-#: Plausible range of the markers' apparent layout scale against the grid,
-#: s = H / (H - h): 1.01-1.3 for a lens 0.5-10 m above 0.114 m markers.  A marker
-#: layout a few tens of % off in the rig only loses the parallax correction (a warning:
-#: the grid is the ruler); far outside, the grid's metric scale itself contradicts the
-#: rig - a wrong spacing, or every other thread invisible - and every position would be
-#: scaled wrong.
-LAYOUT_SCALE_RANGE = (0.7, 1.6)
+# The plausible range of the markers' apparent layout scale against the grid,
+# s = H / (H - h) (1.01-1.3 for a lens 0.5-10 m above 0.114 m markers), is the rig's
+# TrackingSettings layout_scale_min..layout_scale_max (0.7-1.6).  A marker layout a few
+# tens of % off in the rig only loses the parallax correction (a warning: the grid is the
+# ruler); far outside, the grid's metric scale itself contradicts the rig - a wrong
+# spacing, or every other thread invisible - and every position would be scaled wrong.
 
 
 def layout_scale_mismatch(scale: float, rig) -> str:
     """Why the apparent layout scale ``scale`` (median over frames) contradicts the rig,
-    or "" when it is plausible (:data:`LAYOUT_SCALE_RANGE`)."""
-    lo, hi = LAYOUT_SCALE_RANGE
+    or "" when it is plausible (``rig.tracking.layout_scale_min`` .. ``_max``)."""
+    lo, hi = rig.tracking.layout_scale_min, rig.tracking.layout_scale_max
     if lo <= scale <= hi:
         return ""
     hint = (": is every other thread invisible (a thread colour like the ice)? Then give "
@@ -168,7 +169,7 @@ def estimate_height(scales: np.ndarray, h_m: float, weights: np.ndarray | None =
     if s.size < 3:
         return None
     med = np.median(s)
-    mad = 1.4826 * np.median(np.abs(s - med)) or 1e-12
+    mad = robust_sigma(s, centre=med) or 1e-12
     keep = np.abs(s - med) < 4 * mad
     s, w = s[keep], w[keep]
     mean = float(np.sum(w * s) / np.sum(w))

@@ -27,17 +27,11 @@ __all__ = ["track_video", "FrameRecord"]
 
 #: Full-frame marker search: every frame at first, then every n-th frame while lost.
 SEARCH_EVERY = 5
-#: Frames without markers (from the start) after which the video is declared unusable.
-GIVE_UP_FRAMES = 90
-#: Largest gap (frames) over which the rock's ice position is extrapolated to anchor the
-#: grid's prediction: 0.4 s at 30 fps, where a curling rock's deceleration (~0.1 m/s^2)
-#: moves it < 1 cm from its constant-velocity path - well under a cell.
-ANCHOR_MAX_GAP = 12
+# Thresholds (frames without markers before giving up, the blank-frame level, the
+# anchor's longest gap) are the rig's TrackingSettings (curltrack.settings).
 
-
-#: A frame whose grey levels vary less than this (std, 0-255) shows nothing: black,
-#: or a flat fade-in.  Leading blank frames are skipped (t = 0 at the first real one).
-BLANK_STD = 3.0
+#: The status of a frame that shows nothing (grey std below ``blank_std``: black, or a
+#: flat fade-in).  Leading blank frames are skipped (t = 0 at the first real one).
 BLANK = "blank frame (no image content)"
 #: The rock's outline (~1 ms a frame) is measured on about this many frames of a shot.
 OUTLINE_FRAMES = 40
@@ -76,6 +70,25 @@ class FrameRecord:
     notes: list = dc_field(default_factory=list)
 
 
+def rock_in_image(layout_m, markers_px, rock_diameter_m: float):
+    """(centre px, radius px) of the rock's top in the image from its markers: the
+    layout's origin (the rock's axis) under the similarity that maps the rig's layout
+    (m) onto the markers (px)."""
+    L, p = np.asarray(layout_m, float), np.asarray(markers_px, float)
+    px_per_m = np.hypot(*(p[0] - p[1])) / np.hypot(*(L[0] - L[1]))
+    c, _, _, _ = similarity_fit(L, p)
+    return c, 0.5 * rock_diameter_m * px_per_m
+
+
+def rock_disc(layout_m, markers_px, rock_diameter_m: float):
+    """The disc hidden from the grid around the rock: ((x, y), radius) in whole px.
+
+    The rock's side shows too under parallax: a generous margin (1.35 radii + 8 px).
+    """
+    (cx, cy), r = rock_in_image(layout_m, markers_px, rock_diameter_m)
+    return (int(round(cx)), int(round(cy))), int(np.ceil(1.35 * r + 8))
+
+
 class _Follower:
     """Marker prediction and search window from the last measured frames."""
 
@@ -100,11 +113,7 @@ class _Follower:
         p = self.predicted(frame)
         if p is None:
             return None
-        L = self.det.layout_m
-        px_per_m = np.hypot(*(p[0] - p[1])) / np.hypot(*(L[0] - L[1]))
-        # rock axis in the image: the layout's origin under the image similarity
-        c, _, _, _ = similarity_fit(L, p)
-        return c, 0.5 * self.rig.rock_diameter_m * px_per_m
+        return rock_in_image(self.det.layout_m, p, self.rig.rock_diameter_m)
 
     def detect(self, image, frame):
         pred = self.predicted(frame)
@@ -154,12 +163,10 @@ class _Follower:
         m, drawn = self._mask
         if drawn is not None:
             m[drawn] = 0
-        rp = self.rock_px(frame)
+        p = self.predicted(frame)
         drawn = None
-        if rp is not None:
-            (cx, cy), r = rp
-            # the rock's side shows too under parallax: generous margin
-            x, y, rad = int(round(cx)), int(round(cy)), int(np.ceil(1.35 * r + 8))
+        if p is not None:
+            (x, y), rad = rock_disc(self.det.layout_m, p, self.rig.rock_diameter_m)
             cv2.circle(m, (x, y), rad, 255, -1)
             drawn = (slice(max(y - rad, 0), max(y + rad + 1, 0)),
                      slice(max(x - rad, 0), max(x + rad + 1, 0)))
@@ -167,17 +174,37 @@ class _Follower:
         return m
 
 
-def _anchor(markers_ice, markers_px, frame):
+def _anchor(markers_ice, markers_px, frame, max_gap: int):
     """The markers seen in ``frame`` (undistorted px) and their positions on the ice
     extrapolated from the last two measured frames (constant velocity; the rock's motion
     is smooth), for :meth:`GridTracker.update`; None without two frames measured in the
-    last ANCHOR_MAX_GAP."""
+    last ``max_gap`` frames (settings' ``anchor_max_gap_frames``)."""
     if len(markers_ice) < 2:
         return None
     (f0, p0), (f1, p1) = markers_ice
-    if frame - f1 > ANCHOR_MAX_GAP:
+    if frame - f1 > max_gap:
         return None
     return markers_px, p1 + (p1 - p0) * (frame - f1) / (f1 - f0)
+
+
+def blank_frame(image, settings) -> bool:
+    """Whether ``image`` shows nothing: its grey levels (every 8th pixel) vary less than
+    ``settings.blank_std`` (black, a flat fade-in)."""
+    return float(image[::8, ::8].std()) < settings.blank_std
+
+
+def _row_time(rig: Rig, info, fields: bool):
+    """The rolling shutter's per-measurement time offset for :func:`track_frames`, or
+    None without ``[camera].rolling_shutter_ms``."""
+    if not rig.rolling_shutter_ms:
+        return None
+    from .shutter import row_time_offset
+
+    readout_s = 1e-3 * rig.rolling_shutter_ms
+    # (OpenCV decodes turned by the rotation tag, PyAV - also for fields - does not)
+    rotated = info.decoder != "pyav" and not fields
+    return lambda pts_px, shape: row_time_offset(pts_px, shape, readout_s,
+                                                 info.rotation_deg, rotated)
 
 
 def _calibrate(image, rig, mask):
@@ -194,9 +221,13 @@ def _calibrate(image, rig, mask):
         return None, msg
 
 
-def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int = 2
-                 ) -> tuple[list[FrameRecord], dict]:
+def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int = 2,
+                 row_time=None) -> tuple[list[FrameRecord], dict]:
     """Run the per-frame loop over an iterable of :class:`curltrack.video.Frame`.
+
+    ``row_time(markers_px, image_shape)``, when given (a rolling shutter,
+    :func:`curltrack.track.shutter.row_time_offset`), is added to each measured frame's
+    time: the instant at which the rock's rows were exposed.
 
     The rock's outline (the scale check's second ruler) is measured on every
     ``outline_every``-th frame.
@@ -210,6 +241,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     from ..calib.grid import pixel_scale, pixel_steps
     from ..calib.lens import apply_h, undistort
 
+    st = rig.tracking
     det = MarkerDetector(rig)
     fol = _Follower(det, rig)
     tracker = None
@@ -227,7 +259,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         if progress is not None:
             progress(1)
         img = fr.image
-        if not seen_markers and float(img[::8, ::8].std()) < BLANK_STD:  # black lead-in
+        if not seen_markers and blank_frame(img, st):  # black lead-in
             rec.status = BLANK  # (before the detector sees it: it adapts to what it sees)
             continue
         mf = fol.detect(img, k)
@@ -236,7 +268,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             rec.status = ("rock/markers not found" if mf is None else
                           f"markers not found ({mf.message})")
             if not seen_markers:
-                if len(records) >= GIVE_UP_FRAMES:
+                if len(records) >= st.give_up_frames:
                     raise TrackingError(
                         f"no markers of the rig's colours "
                         f"({', '.join(m.color for m in rig.markers)}) found in frames "
@@ -250,7 +282,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             calib, calib_msg = _calibrate(img, rig, mask)
             if calib is None:
                 rec.status = f"grid not found ({calib_msg})"
-                if len(records) >= GIVE_UP_FRAMES:
+                if len(records) >= st.give_up_frames:
                     raise TrackingError(f"no grid found in frames {records[0].frame}-"
                                         f"{fr.index}: {calib_msg}", path=path,
                                         where=f"frame {fr.index}")
@@ -263,15 +295,22 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             M = len(L)
             q = undistort(np.vstack([mf.xy_px, pixel_steps(mf.xy_px.mean(axis=0))]),
                           calib.K, calib.dist)
-            anchor = _anchor(markers_ice, q[:M], k)
+            anchor = _anchor(markers_ice, q[:M], k, st.anchor_max_gap_frames)
         pose = tracker.update(img, k, mask=mask, anchor=anchor)
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px
         if not found:
             continue
         rec.markers_px = mf.xy_px
+        if row_time is not None:
+            rec.t = fr.t + row_time(mf.xy_px, img.shape)
         if not pose.ok:
             rec.status = f"grid: {pose.message}"
+            continue
+        if not calib.in_checked_lens(mf.xy_px).all():
+            rec.status = (f"lens: the rock is beyond the {calib.lens_radius_px:.0f} px from "
+                          f"the image centre where the threads confirm the wide-angle lens "
+                          f"(k1 = {calib.dist[0]:.3f}, k2 = {calib.dist[1]:.3f})")
             continue
         on_ice = apply_h(pose.H, q)
         ice = on_ice[:M]
@@ -413,7 +452,8 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
             records, loop_info = track_frames(
                 frames, rig, path=video_path,
                 progress=_counting(advance, report, total) if progress or report else None,
-                outline_every=max(2, total // OUTLINE_FRAMES))
+                outline_every=max(2, total // OUTLINE_FRAMES),
+                row_time=_row_time(rig, info, fields))
     finally:
         cv2.setNumThreads(threads_before)
     blank = _blank_lead(records) if start_frame is None else 0

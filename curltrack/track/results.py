@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__
+from .._stats import robust_sigma
 from ..errors import TrackingError
 from ..rig import Rig
 from ..series import Series, make_meta
@@ -17,24 +18,15 @@ from ..series.stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
 
-#: Largest 1 sigma (m) of an origin extrapolated back to t = 0 that a series may carry
-#: (in sigma_xy); beyond it every position would be uncertain by more: an error.
-MAX_ORIGIN_SIGMA_M = 0.010
-
-#: Frames whose layout scale is this many robust sigmas off the video's are rejected.
-SCALE_OUTLIER_SIGMA = 6.0
-MIN_MEASURED = 8
-#: A grid scale the rock's rulers can check only to worse than this (relative) is
-#: reported: every position, speed and the friction's alpha carry such an error whole,
-#: and 3 % is the scale error issue 20 asks the check to catch.
-SCALE_RESOLUTION_WARN = 0.03
-#: Camera turn (deg/frame, the grid's rotation in the image) above which SHOT.json warns.
-#: Measured on a 640x360 rendered draw turned steadily about the image centre: position
-#: RMS 1.5-1.9 mm (max 3.2) from 0 to 1.0 deg/frame, 2.5-3.3 mm (max 5-6) from 1.5 to
-#: 4.5 deg/frame; at 4.9 the grid was lost for 16 frames and re-found turned by 90 deg.
-#: Slow turns (12-20 deg/s at 30 fps = 0.4-0.67 deg/frame) are as accurate as a still
-#: camera and must not warn.  ``doctor`` uses the same limit.
-TURN_WARN_DEG_PER_FRAME = 1.0
+# The thresholds (largest origin sigma, layout-scale outliers, fewest measured frames,
+# the grid-scale resolution warning, the rolling shutter's slide warning, the
+# camera-turn warning) are the rig's
+# TrackingSettings (curltrack.settings).
+# Camera turn: measured on a 640x360 rendered draw turned steadily about the image
+# centre: position RMS 1.5-1.9 mm (max 3.2) from 0 to 1.0 deg/frame, 2.5-3.3 mm (max 5-6)
+# from 1.5 to 4.5 deg/frame; at 4.9 the grid was lost for 16 frames and re-found turned
+# by 90 deg.  Slow turns (12-20 deg/s at 30 fps = 0.4-0.67 deg/frame) are as accurate as
+# a still camera and must not warn.  ``doctor`` uses the same limit.
 
 
 #: sigma_xy (per coordinate) = k x hypot(SIGMA_STAT_SCALE x the pixel-noise sigma of the
@@ -47,12 +39,6 @@ TURN_WARN_DEG_PER_FRAME = 1.0
 #: likelihood over those frames: 1.40 and 0.32 (the rock's speed added nothing); the
 #: std of error/sigma is then 0.66-1.15 per set-up (was 1.30-2.44).
 SIGMA_STAT_SCALE = 1.40
-#: A frame whose sigma_xy exceeds this many times the video's median is not measured
-#: (ok = 0): its own fit says it is unsure (a grid fit just inside the poor-fit limit,
-#: half-hidden markers).  On the wrong-cell test's fast handheld shots the one such frame
-#: was 14 mm off (sigma 3.6 mm against 0.9 typical); on 5 camera-sweep set-ups no frame
-#: came above 2.1x.
-SIGMA_OUTLIER_FACTOR = 3.0
 SIGMA_MISFIT_SCALE = 0.32
 
 
@@ -109,6 +95,28 @@ def reason_groups(records) -> list[tuple[str, list[int], str]]:
     return sorted(out, key=lambda g: (-len(g[1]), g[1][0]))
 
 
+def shutter_slide(records, calib, readout_s: float) -> tuple[int, float]:
+    """How far (m) the ice slides under the image during a rolling shutter's readout:
+    the speed of the ice point at the principal point (from consecutive measured frames'
+    homographies; running median of 3 against a cell jump) times ``readout_s``.
+    Returns (frame of the largest, its slide in m); (-1, 0.0) with < 3 measured frames.
+    """
+    from ..calib.lens import apply_h, undistort
+
+    used = [r for r in records if r.status == "" and r.H is not None]
+    if len(used) < 3 or readout_s <= 0:
+        return -1, 0.0
+    pp = undistort(calib.K[:2, 2][None], calib.K, calib.dist)[0]
+    H = np.array([r.H for r in used])
+    c = np.einsum("nij,j->ni", H, np.append(pp, 1.0))
+    c = c[:, :2] / c[:, 2:]
+    t = np.array([r.t for r in used])
+    speed = np.hypot(*np.diff(c, axis=0).T) / np.maximum(np.diff(t), 1e-6)
+    speed = np.median(np.lib.stride_tricks.sliding_window_view(speed, 3), axis=1)
+    i = int(np.argmax(speed))
+    return int(used[i + 2].frame), float(speed[i] * readout_s)
+
+
 def camera_turn(records, calib) -> tuple[np.ndarray, np.ndarray]:
     """Frame-to-frame turn of the grid in the image (deg/frame) between measured frames.
 
@@ -148,7 +156,7 @@ def _height(records, ok, rig: Rig, depth_eff: float, warnings: list) -> HeightEs
     return est
 
 
-def _resolve_cells(records, t, centre, ok, calib, warnings, path):
+def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
     """Put every grid segment in one cell index (:mod:`.segments`), in place.
 
     ``centre`` and the records' homographies of re-anchored segments are moved by whole
@@ -159,7 +167,7 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path):
 
     seg = np.array([r.segment for r in records])
     shift, unresolved, notes = resolve_segments(
-        t, centre, seg, ok, (calib.spacing_x_m, calib.spacing_y_m))
+        t, centre, seg, ok, (calib.spacing_x_m, calib.spacing_y_m), settings=settings)
     for i in np.flatnonzero(np.any(shift != 0, axis=1)):
         centre[i] += shift[i]
         records[i].H = np.array([[1.0, 0, shift[i, 0]], [0, 1.0, shift[i, 1]],
@@ -177,6 +185,7 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path):
 def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None) -> Series:
     """Assemble the Series (see :func:`curltrack.track.track_video` for the columns)."""
     n = len(records)
+    st = rig.tracking
     warnings: list[str] = []
     frame = np.array([r.frame for r in records])
     t = np.array([r.t for r in records], float)
@@ -187,8 +196,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     scale_resolution = np.inf
     if ok.sum() >= 5:
         med = np.median(scale[ok])
-        mad = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
-        bad = ok & (np.abs(scale - med) > SCALE_OUTLIER_SIGMA * max(mad, 1e-4))
+        mad = robust_sigma(scale[ok], centre=med) or 1e-9
+        bad = ok & (np.abs(scale - med) > st.scale_outlier_sigma * max(mad, 1e-4))
         for i in np.flatnonzero(bad):
             records[i].status = "marker layout inconsistent with the rest of the video"
         ok &= ~bad
@@ -202,7 +211,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         if mismatch:
             raise TrackingError(mismatch, path=path, where=f"frames {frame[0]}-{frame[-1]}")
         scale_resolution = scale_check_resolution(*rulers)
-        if scale_resolution > SCALE_RESOLUTION_WARN:
+        if scale_resolution > st.scale_resolution_warn:
             hint = ("" if rig.camera_height_m is not None else
                     ": give [camera].height_m (tape-measured) to check it more finely")
             warnings.append(
@@ -211,12 +220,12 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                    else "no useful precision")
                 + " (a grid spacing off by less is not caught: every position, speed and "
                 f"the friction's alpha would be off by as much){hint}")
-    if ok.sum() < MIN_MEASURED:
+    if ok.sum() < st.min_measured_frames:
         span = f"frames {frame[0]}-{frame[-1]}" if n else None
-        if n < MIN_MEASURED:
+        if n < st.min_measured_frames:
             what = "the video has" if n == info.n_frames else "the tracked range has"
             raise TrackingError(f"{what} only {n} frame{'s' * (n != 1)}; a shot needs at "
-                                f"least {MIN_MEASURED} measured frames", path=path, where=span)
+                                f"least {st.min_measured_frames} measured frames", path=path, where=span)
         lost = "; ".join(f"{kind}: {len(frs)} frame{'s' * (len(frs) != 1)}"
                          for kind, frs, _ in reason_groups(records))
         raise TrackingError(f"the rock could be measured in only {int(ok.sum())} of {n} "
@@ -252,7 +261,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # from the nadir (the camera following a fast rock lags it by a metre)
     sigma_parallax = np.zeros(n)
     sigma_parallax[idx] = est.k_err * np.hypot(*(app - nd).T) if np.isfinite(est.k_err) else 0.0
-    idx = _resolve_cells(records, t, centre, ok, calib, warnings, path)
+    idx = _resolve_cells(records, t, centre, ok, calib, warnings, path, st)
     phi[idx] = [records[i].phi for i in idx]
     # image up direction in the lattice frame (first measured frame), for a still rock
     r0 = records[idx[0]]
@@ -260,7 +269,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
 
     p0 = undistort(np.nanmean(r0.markers_px, axis=0)[None], calib.K, calib.dist)
     a, b = apply_h(r0.H, np.vstack([p0, p0 + (0.0, -10.0)]))
-    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a)
+    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st)
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
     L = np.array([[m.x_m, m.y_m] for m in rig.markers])
@@ -271,7 +280,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
     sigma_xy = np.hypot(est.k * np.hypot(SIGMA_STAT_SCALE * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
                                          SIGMA_MISFIT_SCALE * sig_r), sigma_parallax)
-    if shot["origin_sigma_m"] > MAX_ORIGIN_SIGMA_M:
+    if shot["origin_sigma_m"] > st.max_origin_sigma_m:
         raise TrackingError(f"the first measured frame is at t = {t[ok][0]:.2f} s and the "
                             "origin (the rock at t = 0) cannot be extrapolated back to it "
                             f"better than ~{1e3 * shot['origin_sigma_m']:.0f} mm: give "
@@ -299,18 +308,18 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # (frames measured from a user's clicks carry the click precision: theirs to judge)
     clicked = np.array([any("from clicks" in n for n in r.notes) for r in records], bool)
     sure = ok & np.isfinite(sigma_xy)
-    if sure.sum() >= MIN_MEASURED:
+    if sure.sum() >= st.min_measured_frames:
         typical = float(np.median(sigma_xy[sure & ~clicked] if (sure & ~clicked).any()
                                   else sigma_xy[sure]))
-        unsure = sure & ~clicked & (sigma_xy > SIGMA_OUTLIER_FACTOR * typical)
+        unsure = sure & ~clicked & (sigma_xy > st.sigma_outlier_factor * typical)
         for i in np.flatnonzero(unsure):
-            records[i].status = (f"uncertain: sigma_xy over {SIGMA_OUTLIER_FACTOR:g}x the "
+            records[i].status = (f"uncertain: sigma_xy over {st.sigma_outlier_factor:g}x the "
                                  f"video's typical {1e3 * typical:.1f} mm (a doubtful grid "
                                  "or marker fit)")
         ok &= ~unsure
         shot = dict(shot, **{k: np.where(unsure, np.nan, shot[k]) for k in ("x", "y", "theta")})
     med = np.median(scale[ok])
-    spread = 1.4826 * np.median(np.abs(scale[ok] - med)) or 1e-9
+    spread = robust_sigma(scale[ok], centre=med) or 1e-9
     contrast = np.array([r.contrast for r in records])
     # 1 for a frame whose marker layout agrees with the video's (3 robust sigmas -> 0.6)
     quality = (np.exp(-0.5 * ((scale - med) / (3 * max(spread, 1e-4))) ** 2)
@@ -329,13 +338,23 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         warnings.append(f"{path}: frame(s) {frame_ranges(frs)}: {reason} (ok = 0)")
     turn_frames, turn = camera_turn(records, calib)
     turn_max = float(turn.max()) if turn.size else None
-    if turn_max is not None and turn_max > TURN_WARN_DEG_PER_FRAME:
-        n_fast = int((turn > TURN_WARN_DEG_PER_FRAME).sum())
+    turn_warn = st.turn_warn_deg_per_frame
+    if turn_max is not None and turn_max > turn_warn:
+        n_fast = int((turn > turn_warn).sum())
         warnings.append(f"{path}: frame {int(turn_frames[np.argmax(turn)])}: the camera turns "
                         f"{turn_max:.1f} deg/frame ({turn_max * info.fps:.0f} deg/s; "
-                        f"{n_fast} frame(s) above {TURN_WARN_DEG_PER_FRAME:g}): positions "
+                        f"{n_fast} frame(s) above {turn_warn:g}): positions "
                         "lose accuracy and the grid can be lost; turn the camera more "
                         "slowly")
+    if rig.rolling_shutter_ms:
+        slide_frame, slide = shutter_slide(records, calib, 1e-3 * rig.rolling_shutter_ms)
+        if slide > st.shutter_slide_warn_m:
+            warnings.append(
+                f"{path}: frame {slide_frame}: the ice slides {1e3 * slide:.0f} mm under "
+                f"the image during the rolling shutter's {rig.rolling_shutter_ms:g} ms "
+                "readout (camera motion): rows are timed where the rock was seen, but "
+                "the image's shear under a shaking or turning camera is not modelled - "
+                "positions may be off by a few per cent of it, not included in sigma_xy")
     if abs(getattr(info, "pixel_aspect", 1.0) - 1.0) > 1e-3:
         warnings.append(f"{path}: the video's pixels are not square (aspect "
                         f"{info.pixel_aspect:.4g}): frames were resampled to square pixels "
@@ -365,7 +384,12 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         frame_y_axis_lattice=shot["y_hat"].tolist(),
         frame_axis_source=shot["direction_source"],
         theta0_lattice_rad=shot["theta0"],
+        tracking_settings=st.summary(),
     )
+    if rig.rolling_shutter_ms:
+        meta["rolling_shutter_ms"] = float(rig.rolling_shutter_ms)
     if calib is not None:
         meta["lens_k1"], meta["lens_k2"] = float(calib.dist[0]), float(calib.dist[1])
+        if calib.lens_radius_px is not None:
+            meta["lens_radius_px"] = float(calib.lens_radius_px)
     return Series(data, meta, None)

@@ -6,7 +6,7 @@ The grid tracker keeps the cell index continuous within a *segment*
 colours alone (known only modulo the number of colours), a new segment starts and its
 positions may be off by whole cells (0.1-0.3 m each).  Here the offset of each segment is
 measured from outside the grid: the rock slides smoothly, so one quadratic in time fits
-its path over the last ``FIT_WINDOW_S`` before the gap and the first after it, and the
+its path over the last ``segment_window_s`` (TrackingSettings) before the gap and the first after it, and the
 step between the two sides, in whole cells, is the offset.  A segment whose step is not
 an integer number of cells within the evidence, or whose ends are too short to fit, stays
 unresolved: its frames are ``ok`` = 0 - a wrong cell never reaches an ``ok`` row.
@@ -16,14 +16,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..settings import TrackingSettings
+
 __all__ = ["resolve_segments", "path_step"]
 
-#: Seconds of the rock's path used on each side of a gap.
-FIT_WINDOW_S = 1.0
-#: Fewest measured frames on each side for a fit.
-MIN_SIDE_FRAMES = 4
-#: Largest gap (s) across which the path is extrapolated.
-MAX_GAP_S = 2.0
+# The window, fewest frames and longest gap of the fit on each side, and the acceptance
+# of a step (within ``segment_max_fraction`` of a whole number of cells, 1 sigma at most
+# ``segment_max_sigma_cells``: the nearest wrong integer is then > 5 sigma from it) are
+# TrackingSettings (curltrack.settings).
 #: Floor of the scatter of the rock's (parallax-corrected) positions about a quadratic
 #: (m): marker noise and the grid's are 0.3-1 mm per frame.
 MIN_SCATTER_M = 1.0e-3
@@ -34,11 +34,6 @@ MIN_SCATTER_M = 1.0e-3
 #: 2.8 / 5.7 / 10.8) across gaps of 10 / 25 / 40 frames at 30 fps (spans 2.3-3.3 s), i.e.
 #: <= 0.0004 x span^3.
 MODEL_JERK_M_S3 = 0.0004
-#: The step must be this close to a whole number of cells (fraction of a cell) ...
-MAX_FRACTION = 0.25
-#: ... and its 1 sigma at most this fraction of a cell (the nearest wrong integer is
-#: then > 5 sigma from the measured step).
-MAX_SIGMA_CELLS = 0.15
 
 
 def path_step(t_a, p_a, t_b, p_b):
@@ -77,7 +72,7 @@ def path_step(t_a, p_a, t_b, p_b):
     return coef[3], sigma
 
 
-def _side(t, p, sel_ref, sel_seg, before):
+def _side(t, p, sel_ref, sel_seg, before, st):
     """Reference and segment samples on one side of the segment's gap, or None."""
     tr, ts = t[sel_ref], t[sel_seg]
     if before:
@@ -85,24 +80,25 @@ def _side(t, p, sel_ref, sel_seg, before):
         if not ref.any():
             return None
         t_near = t[ref].max()
-        ref &= t >= t_near - FIT_WINDOW_S
-        seg = sel_seg & (t <= ts.min() + FIT_WINDOW_S)
+        ref &= t >= t_near - st.segment_window_s
+        seg = sel_seg & (t <= ts.min() + st.segment_window_s)
         gap = ts.min() - t_near
     else:
         ref = sel_ref & (t > ts.max())
         if not ref.any():
             return None
         t_near = t[ref].min()
-        ref &= t <= t_near + FIT_WINDOW_S
-        seg = sel_seg & (t >= ts.max() - FIT_WINDOW_S)
+        ref &= t <= t_near + st.segment_window_s
+        seg = sel_seg & (t >= ts.max() - st.segment_window_s)
         gap = t_near - ts.max()
     del tr
-    if ref.sum() < MIN_SIDE_FRAMES or seg.sum() < MIN_SIDE_FRAMES or gap > MAX_GAP_S:
+    n_min = st.segment_min_side_frames
+    if ref.sum() < n_min or seg.sum() < n_min or gap > st.segment_max_gap_s:
         return None
     return path_step(t[ref], p[ref], t[seg], p[seg])
 
 
-def resolve_segments(t, p, segment, ok, spacing_m):
+def resolve_segments(t, p, segment, ok, spacing_m, settings: TrackingSettings | None = None):
     """Whole-cell offsets of the grid's segments, from the rock's path.
 
     Parameters
@@ -117,6 +113,8 @@ def resolve_segments(t, p, segment, ok, spacing_m):
         Measured frames.
     spacing_m : (float, float)
         Thread spacings along the lattice's x and y (m).
+    settings : TrackingSettings, optional
+        The ``segment_*`` thresholds (default: the defaults).
 
     Returns
     -------
@@ -128,6 +126,7 @@ def resolve_segments(t, p, segment, ok, spacing_m):
     notes : list of str
         One line per segment moved or left unresolved.
     """
+    st = TrackingSettings() if settings is None else settings
     t = np.asarray(t, float)
     p = np.asarray(p, float)
     ok = np.asarray(ok, bool)
@@ -151,7 +150,7 @@ def resolve_segments(t, p, segment, ok, spacing_m):
         for sid in order:
             sel_seg = ok & (segment == sid)
             steps = [r for before in (True, False)
-                     if (r := _side(t, q, sel_ref, sel_seg, before)) is not None]
+                     if (r := _side(t, q, sel_ref, sel_seg, before, st)) is not None]
             if not steps:
                 continue
             frames = np.flatnonzero(sel_seg)
@@ -159,8 +158,8 @@ def resolve_segments(t, p, segment, ok, spacing_m):
             for step, sigma in steps:
                 cells = -step / s
                 kk = np.round(cells)
-                if (np.all(np.abs(cells - kk) <= MAX_FRACTION)
-                        and np.all(sigma / s <= MAX_SIGMA_CELLS)
+                if (np.all(np.abs(cells - kk) <= st.segment_max_fraction)
+                        and np.all(sigma / s <= st.segment_max_sigma_cells)
                         and (k is None or np.array_equal(k, kk))):
                     k = kk
                 else:

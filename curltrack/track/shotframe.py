@@ -12,17 +12,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._stats import robust_sigma
+from ..settings import TrackingSettings
+
 __all__ = ["unwrap_angle", "initial_state", "choose_axes", "to_shot_frame"]
 
-#: Displacement (m) below which a rock is taken not to translate (axis from the image).
-MIN_TRAVEL_M = 0.05
+# The displacement below which a rock does not translate (``min_travel_m``) and the
+# largest deceleration of a sliding rock (``max_deceleration_m_s2``: mu g with mu <= 0.03
+# at the slowest speeds of the paper's law) are TrackingSettings (curltrack.settings).
 #: How far a rock's path departs from the quadratic of :func:`initial_state` when it is
 #: extrapolated back to t = 0 (m per s^3 of span): the bound measured for a quadratic
 #: through a curling rock's path in :data:`curltrack.track.segments.MODEL_JERK_M_S3`.
 EXTRAPOLATION_M_S3 = 4e-4
-#: Largest deceleration of a sliding rock (m/s^2): mu g with mu <= 0.03 at the slowest
-#: speeds of the paper's law; bounds the error of a straight line extrapolated back.
-MAX_DECELERATION_M_S2 = 0.3
 #: Floor of a frame's position scatter about the initial fit (m).
 MIN_SCATTER_M = 0.5e-3
 
@@ -82,7 +83,7 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_point
     if n > deg + 4:
         # one robust pass: frames more than 3 robust sigmas off the fit are dropped
         res = qq - A @ coef
-        mad = 1.4826 * np.median(np.abs(res - np.median(res, axis=0)), axis=0)
+        mad = robust_sigma(res, axis=0)
         keep = np.all(np.abs(res) <= 3 * np.maximum(mad, 1e-12), axis=1)
         if keep.sum() > deg + 2:
             coef, *_ = np.linalg.lstsq(A[keep], qq[keep], rcond=None)
@@ -91,14 +92,14 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_point
     return q0, rate
 
 
-def _origin_sigma(t: np.ndarray, q: np.ndarray, window_s: float = 0.8,
-                  min_points: int = 8) -> float:
+def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
+                  window_s: float = 0.8, min_points: int = 8) -> float:
     """1 sigma (m) of the origin extrapolated back to t = 0 by :func:`initial_state`.
 
     The fit's own extrapolation variance (from its design and the frames' scatter) plus
     a model term: the path's departure from a quadratic (``EXTRAPOLATION_M_S3``), or for
     a straight line through too few frames, the deceleration it cannot see
-    (``MAX_DECELERATION_M_S2``).  Infinite when fewer than two frames are measured.
+    (``max_deceleration_m_s2``, m/s^2).  Infinite when fewer than two frames are measured.
     """
     n, deg, A, coef = _window_fit(t, q, window_s, min_points)
     if deg == 0:
@@ -113,7 +114,7 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, window_s: float = 0.8,
     if deg == 2:
         model = EXTRAPOLATION_M_S3 * ((t[0] + span) ** 3 - span ** 3)
     else:
-        model = 0.5 * MAX_DECELERATION_M_S2 * float(t[0]) * (float(t[0]) + span)
+        model = 0.5 * max_deceleration_m_s2 * float(t[0]) * (float(t[0]) + span)
     return float(np.hypot(stat, model))
 
 
@@ -127,7 +128,8 @@ def choose_axes(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.ndarray,
-                  up_direction: np.ndarray | None = None) -> dict:
+                  up_direction: np.ndarray | None = None,
+                  settings: TrackingSettings | None = None) -> dict:
     """Convert lattice-frame centres and angles into the shot frame.
 
     Parameters
@@ -142,6 +144,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     up_direction : (2,) array, optional
         The image's up direction in the lattice frame (used when the rock does not
         translate).
+    settings : TrackingSettings, optional
+        ``min_travel_m`` and ``max_deceleration_m_s2`` (default: the defaults).
 
     Returns
     -------
@@ -152,6 +156,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
         uncertainty from extrapolating back to t = 0 when the first measured frame is
         later (m; 0 when it is at t = 0).
     """
+    st = TrackingSettings() if settings is None else settings
+    min_travel = st.min_travel_m
     ok = np.asarray(ok, bool)
     idx = np.flatnonzero(ok)
     tt, cc = t[idx], centre[idx]
@@ -160,12 +166,12 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     origin = np.array([x0, y0])
     disp = cc - origin
     reach = np.hypot(*disp.T)
-    if reach.size and reach.max() > MIN_TRAVEL_M:
+    if reach.size and reach.max() > min_travel:
         v = np.array([vx, vy])
         # A rate from 0.5 s of noisy frames may be poor for slow rocks: fall back on the
-        # displacement to where the rock first gets MIN_TRAVEL_M away.
-        first_far = disp[int(np.flatnonzero(reach > MIN_TRAVEL_M)[0])]
-        direction = v if np.hypot(*v) * 0.5 > MIN_TRAVEL_M else first_far
+        # displacement to where the rock first gets min_travel away.
+        first_far = disp[int(np.flatnonzero(reach > min_travel)[0])]
+        direction = v if np.hypot(*v) * 0.5 > min_travel else first_far
         source = "travel"
     else:
         direction = up_direction if up_direction is not None else np.array([0.0, 1.0])
@@ -176,7 +182,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     theta = np.full(t.shape, np.nan)
     x[idx], y[idx] = disp @ x_hat, disp @ y_hat
     theta[idx] = th - th0
-    origin_sigma = _origin_sigma(tt, cc) if tt.size and tt[0] > 0 else 0.0
+    origin_sigma = (_origin_sigma(tt, cc, st.max_deceleration_m_s2)
+                    if tt.size and tt[0] > 0 else 0.0)
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
             "origin_sigma_m": float(origin_sigma)}

@@ -58,10 +58,8 @@ def test_profile_budget_keeps_the_homography(frame_and_calibration, budget):
 
 def test_anchor_moves_the_prediction_onto_the_markers(frame_and_calibration):
     """The prediction is moved so that the anchor's pixels land on their predicted ice
-    positions; a move beyond ANCHOR_MAX_CELLS is ignored (a wrong anchor must not set
-    the cell index)."""
-    from curltrack.calib.tracker import ANCHOR_MAX_CELLS
-
+    positions; a move beyond the settings' anchor_max_cells is ignored (a wrong anchor
+    must not set the cell index)."""
     _, cal, rig = frame_and_calibration
     tracker = GridTracker(cal, rig)
     from curltrack.calib.lens import undistort
@@ -71,7 +69,7 @@ def test_anchor_moves_the_prediction_onto_the_markers(frame_and_calibration):
     shift = np.array([0.012, -0.02])  # m: a shaking camera, ~0.1 cell
     moved = tracker._anchored(cal.H, px, seen + shift)
     np.testing.assert_allclose(apply_h(moved, px), seen + shift, atol=1e-9)
-    far = seen + (ANCHOR_MAX_CELLS + 0.1) * rig.spacing_x_m * np.array([1.0, 0.0])
+    far = seen + (rig.tracking.anchor_max_cells + 0.1) * rig.spacing_x_m * np.array([1.0, 0.0])
     np.testing.assert_array_equal(tracker._anchored(cal.H, px, far), cal.H)
 
 

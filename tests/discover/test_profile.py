@@ -53,3 +53,19 @@ def test_profile_walks_a_stopped_fit_to_its_minimum():
     assert e["shift"] > 1.0, (seed, e, stopped.chi2, full.chi2)
     assert abs(e["value"] - full.values["phi_y"]) < 3 * full.err("phi_y"), \
         (seed, e, full.values["phi_y"], full.err("phi_y"))
+
+
+def test_profile_between_close_bounds_does_not_crash():
+    """A parameter whose bounds are closer to its value than the first profile steps on
+    both sides (a walk with nothing to step on) still gets an error, no exception."""
+    from curltrack.discover.profile import FIRST_STEP
+
+    seed = int(np.random.SeedSequence().entropy % 2**31)
+    _, base = _base(seed)
+    fit = base.fit(max_nfev=80)
+    q0, s0 = float(fit.values["phi_y"]), float(fit.err("phi_y"))
+    base.bounds = dict(base.bounds, phi_y=(q0 - 0.5 * FIRST_STEP * s0,
+                                           q0 + 0.5 * FIRST_STEP * s0))
+    errs = profile_errors(base, fit, ["phi_y"], np.ones(fit.n))
+    e = errs["phi_y"]
+    assert e["value"] == q0 and np.isfinite(e["sigma"]) and e["sigma"] >= s0, (seed, e)

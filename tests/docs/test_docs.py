@@ -85,6 +85,22 @@ def test_rig_doc_lists_every_key_with_its_default_and_range():
                 rigmod.rig_from_dict(data)
 
 
+def test_rig_doc_lists_every_tracking_setting():
+    """docs/rig.md's [tracking] table is TrackingSettings: keys, units, defaults, ranges."""
+    from curltrack.settings import describe_settings
+
+    doc = {names(r["key"])[0]: r for r in tables("rig.md")["tracking"]}
+    code = {r["key"]: r for r in describe_settings()}
+    assert set(doc) == set(code), (f"documented only: {set(doc) - set(code)}; "
+                                   f"code only: {set(code) - set(doc)}")
+    for key, row in doc.items():
+        assert float(row["default"]) == code[key]["default"], key
+        assert row["unit"] == code[key]["unit"], key
+        lo, hi = (float(v) for v in row["range"].replace("−", "-").split("–"))
+        assert (lo, hi) == tuple(map(float, code[key]["range"])), key
+        assert row["why this default"], key
+
+
 def tomllib_example() -> dict:
     import tomllib
 
