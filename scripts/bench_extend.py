@@ -33,7 +33,8 @@ from discover._world import FAMILIES, curve_pulls, make_world  # noqa: E402
 
 from curltrack.discover import discover  # noqa: E402
 
-#: strengths per family: the middle of the tests' moderate range (a detection-edge scan
+#: strengths per family: the middle of the tests' moderate range; friction_law and
+#: translation_coupling worlds are slow/fast-spin sessions (_world.SESSIONS) (a detection-edge scan
 #: did not fit this session's CPU budget; pass --grid for one)
 GRIDS = {
     "friction_field": [0.03],

@@ -17,13 +17,15 @@ coefficients (registry entries in :mod:`curltrack.physics.extensions`, their mat
 They enter the search as nested candidates exactly like the named effects (linear scan
 on the Jacobian around the baseline, parametric-bootstrap look-elsewhere threshold,
 nonlinear refit in the simulator, blocked and leave-one-shot-out held-out error), at a
-false-alarm level of ``physics.extensions.EXTENSION_LEVEL`` each so that the four of them together add
-at most 2 % to the false alarms.  :func:`choose` keeps one only when it explains the
-residuals (they then look like noise), no other extension comes close, and it beats
+false-alarm level of ``physics.extensions.EXTENSION_LEVEL`` each so that the five of them together add
+at most 2.5 % to the false alarms.  :func:`choose` keeps one only when it explains the
+residuals (they then look like noise), no other extension comes close (in delta-BIC, or
+fits at least as well), and it beats
 every named effect by :data:`report.AMBIGUITY_MARGIN` in delta-BIC: a named effect that
 explains the data about as well, with its (usually fewer) parameters, keeps its name.
 The summary sentence and the plotted function with its 1-sigma band are computed from
-the fitted coefficients and their covariance (delta method).
+the fitted coefficients and their covariance (delta method), rescaled to the
+profile-likelihood errors of :mod:`.profile`.
 """
 
 from __future__ import annotations

@@ -27,8 +27,8 @@ tests use the very same equations.  Each is a smooth multiplier with a few coeff
     constant), levelling off below u_floor so the rock stops in finite time.  The
     rotational law keeps its power law.
 
-Their candidates test at a false-alarm level of :data:`EXTENSION_LEVEL` each (the four
-together add at most 2 % to discovery's false alarms).
+Their candidates test at a false-alarm level of :data:`EXTENSION_LEVEL` each (the five
+together add at most 2.5 % to discovery's false alarms).
 """
 
 from __future__ import annotations
