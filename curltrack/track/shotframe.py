@@ -20,10 +20,15 @@ __all__ = ["unwrap_angle", "initial_state", "choose_axes", "to_shot_frame"]
 # The displacement below which a rock does not translate (``min_travel_m``) and the
 # largest deceleration of a sliding rock (``max_deceleration_m_s2``: mu g with mu <= 0.03
 # at the slowest speeds of the paper's law) are TrackingSettings (curltrack.settings).
-#: How far a rock's path departs from the quadratic of :func:`initial_state` when it is
-#: extrapolated back to t = 0 (m per s^3 of span): the bound measured for a quadratic
-#: through a curling rock's path in :data:`curltrack.track.segments.MODEL_JERK_M_S3`.
+#: Smallest cubic coefficient (m/s^3, jerk / 6) assumed of a rock's path when the
+#: quadratic of :func:`initial_state` is extrapolated back to t = 0: the bound measured
+#: for a quadratic through a curling rock's path in
+#: :data:`curltrack.track.segments.MODEL_JERK_M_S3`.
 EXTRAPOLATION_M_S3 = 4e-4
+#: Largest |phi| of the friction law mu = alpha u^phi the extrapolation allows for: a
+#: deceleration a = mu g at speed u then changes at up to |phi| a^2 / u (m/s^3).  The
+#: paper measures phi from -0.82 to -0.52 and cites a calculation giving +0.49.
+MAX_ABS_PHI = 1.0
 #: Floor of a frame's position scatter about the initial fit (m).
 MIN_SCATTER_M = 0.5e-3
 
@@ -112,7 +117,16 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
     stat = scatter * np.sqrt(a0)
     span = float(t[n - 1] - t[0])
     if deg == 2:
-        model = EXTRAPOLATION_M_S3 * ((t[0] + span) ** 3 - span ** 3)
+        # the path's cubic term, bounded from the fit's own deceleration and speed (a
+        # slow rock on keen ice decelerates faster and changes its deceleration faster:
+        # a 640x360 handheld draw first measured 1 s after release was 22 mm off its
+        # extrapolated origin, against ~3 mm from a fixed bound), times what a cubic
+        # does to this fit's intercept
+        c = np.reshape(coef, (deg + 1, -1))
+        accel = 2.0 * np.linalg.norm(c[2])
+        speed = np.linalg.norm(c[1] + 2.0 * c[2] * float(np.mean(t[:n])))
+        cubic = max(EXTRAPOLATION_M_S3, MAX_ABS_PHI * accel ** 2 / max(speed, 0.05) / 6.0)
+        model = cubic * abs(float((np.linalg.pinv(A) @ t[:n] ** 3)[0]))
     else:
         model = 0.5 * max_deceleration_m_s2 * float(t[0]) * (float(t[0]) + span)
     return float(np.hypot(stat, model))
