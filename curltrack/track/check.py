@@ -9,7 +9,8 @@ from the rig) on it:
 2. every marker of the rig must be found (:class:`.markers.MarkerDetector`);
 3. the rock is masked as ``track`` masks it (:func:`.pipeline.rock_disc`), the grid
    calibrated on the frame - or, when a calibration from scratch fails on it, on a
-   neighbouring frame, as ``track`` carries its calibration from its first frame - and
+   neighbouring frame, else the last one found (or the first frame from the start of
+   the video where one works), as ``track`` carries its calibration - and
    measured on the frame by :meth:`curltrack.calib.GridTracker.update`, whose
    refusals (threads not found, a weak snap, ...) are ``track``'s.
 
@@ -31,6 +32,9 @@ from ..rig import Rig
 __all__ = ["FrameVerdict", "check_frames", "frame_reader"]
 
 #: Neighbouring frames tried for a calibration when one from scratch fails on a frame.
+#: Step (frames) of the search from the video's start for a frame a calibration from
+#: scratch works on, when none near the judged frame does (doctor samples few frames).
+FIRST_CALIBRATION_STEP = 10
 NEIGHBOURS = (-1, 1, -2, 2)
 
 
@@ -111,6 +115,21 @@ def frame_reader(path, n_frames: int | None = None, fps_override=None):
     return read
 
 
+def _follow(read, cal, start: int, k: int, image, mask, det, rig: Rig):
+    """The grid tracker's pose on frame ``k`` (``image``, ``mask``) after following the
+    grid from frame ``start``, where ``cal`` was made, through every frame between."""
+    from ..calib import GridTracker
+    from .pipeline import blank_frame
+
+    tracker = GridTracker(cal, rig)
+    for i in range(start + 1, k):
+        other = read(i)
+        if other is None or blank_frame(other, rig.tracking):
+            continue
+        tracker.update(other, i, mask=_mask(other, det, det.detect(other), rig))
+    return tracker.update(image, k, mask=mask)
+
+
 def check_frames(read, frames, rig: Rig, detector=None) -> list[FrameVerdict]:
     """Judge frames one by one as ``track`` would.
 
@@ -136,6 +155,17 @@ def check_frames(read, frames, rig: Rig, detector=None) -> list[FrameVerdict]:
 
     det = detector if detector is not None else MarkerDetector(rig)
     out = []
+    carried = None  # (calibration, frame): the last one found, as track carries its own
+
+    def calibrate_near(k):
+        for d in NEIGHBOURS:
+            other = read(k + d) if k + d >= 0 else None
+            if other is not None:
+                cal, _ = _calibrate(other, rig, _mask(other, det, det.detect(other), rig))
+                if cal is not None:
+                    return cal, k + d
+        return None, k
+
     for k in frames:
         k = int(k)
         image = read(k)
@@ -151,19 +181,28 @@ def check_frames(read, frames, rig: Rig, detector=None) -> list[FrameVerdict]:
         mask = _mask(image, det, mf, rig)
         cal, why = _calibrate(image, rig, mask)
         on = k
-        for d in NEIGHBOURS if cal is None else ():
-            other = read(k + d) if k + d >= 0 else None
-            if other is None:
-                continue
-            cal, _ = _calibrate(other, rig, _mask(other, det, det.detect(other), rig))
-            if cal is not None:
-                on = k + d
-                break
+        if cal is None:
+            cal, on = calibrate_near(k)
+        if cal is None and carried is None:
+            # (track calibrates once, on its first frame where that works, and follows
+            # the grid from there: look for such a frame from the start of the video)
+            for start in range(0, k, FIRST_CALIBRATION_STEP):
+                cal, on = calibrate_near(start)
+                if cal is not None:
+                    break
+        if cal is None and carried is not None:
+            cal, on = carried
+        if cal is not None:
+            carried = (cal, on)
         if cal is None:
             grid = f"grid not found ({why})"
             out.append(FrameVerdict(k, markers or grid, grid, found, xy))
             continue
         pose = GridTracker(cal, rig).update(image, k, mask=mask)
+        if not pose.ok and on < k:
+            # a calibration from another frame: follow the grid from there to this frame,
+            # frame by frame, as track does
+            pose = _follow(read, cal, on, k, image, mask, det, rig)
         # A cell index "uncertain" or "ambiguous" on one frame only says that the
         # tracker's colour reading and the calibration's disagree: there is no tracked
         # index to slip from; track carries the index from the frames before.

@@ -191,3 +191,23 @@ def test_hidden_effect_named_under_each_noise_class(effect, noise_class):
     named = sum(v == effect for v in verdicts)
     wrong = [v for v in verdicts if v not in (effect, "none", "unexplained")]
     assert named >= 8 and not wrong, f"seed {seed}: strength {strength:g}: {verdicts}"
+
+
+def test_persistent_instrument_noise_is_named_in_the_report():
+    """Persistent instrument errors are named in REPORT.json's warnings exactly when the
+    residuals' low-frequency noise (the reported ``inflation``) exceeds the limit - a
+    verdict other than none may then be the instrument; white noise never warns."""
+    from curltrack.discover import PERSISTENT_NOISE_WARN
+
+    seed = _entropy()
+    rng = np.random.default_rng(seed)
+    for cls in ("steps", "white"):
+        rep = discover(clean_case(rng, cls, float(rng.choice([10.0, 30.0])),
+                                  bool(rng.random() < 0.5)),
+                       n_boot=50, seed=int(rng.integers(1 << 30)), extensions=False)
+        warned = any("low-frequency noise" in w for w in rep["warnings"])
+        high = any(sh[c]["inflation"] > PERSISTENT_NOISE_WARN
+                   for sh in rep["noise"] for c in ("x", "y", "theta")
+                   if c in sh and sh[c].get("inflation") is not None)
+        assert warned == high and (cls == "steps" or not warned), (
+            seed, cls, rep["warnings"], rep["noise"])
