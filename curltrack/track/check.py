@@ -175,6 +175,14 @@ def check_frames(read, frames, rig: Rig, detector=None) -> list[FrameVerdict]:
             out.append(FrameVerdict(k, BLANK, BLANK, (False,) * len(rig.markers)))
             continue
         mf = det.detect(image)
+        if not mf.found.all():
+            # track looks for them where the frames before put them: so does this
+            for d in (-1, -2):
+                before = read(k + d) if k + d >= 0 else None
+                prev = det.detect(before) if before is not None else None
+                if prev is not None and prev.found.all():
+                    mf = det.detect(image, predicted=prev.xy_px)
+                    break
         found = tuple(bool(f) for f in mf.found)
         markers = "" if all(found) else f"markers not found ({mf.message})"
         xy = mf.xy_px if all(found) else None
