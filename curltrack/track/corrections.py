@@ -101,5 +101,6 @@ def apply_corrections(records, corr: dict, calib, rig) -> list[str]:
             rec.grid_sigma_m = 0.3 * mpp
         rec.contrast = contrast
         rec.status = ""
+        rec.clicked = True
         rec.notes.append("measured from clicks (corrections file)")
     return warnings

@@ -68,6 +68,7 @@ class FrameRecord:
     segment: int = 0  # the grid's cell-index segment (GridPose.segment)
     outline_m: float = np.nan  # radius of the rock's outline (m, lattice; track.outline)
     notes: list = dc_field(default_factory=list)
+    clicked: bool = False  # measured from a corrections file's clicks
 
 
 def rock_in_image(layout_m, markers_px, rock_diameter_m: float):

@@ -306,7 +306,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                 "included in sigma_xy / sigma_theta")
     # a frame whose own fit is far less sure than the video's others is not measured
     # (frames measured from a user's clicks carry the click precision: theirs to judge)
-    clicked = np.array([any("from clicks" in n for n in r.notes) for r in records], bool)
+    clicked = np.array([r.clicked for r in records], bool)
     sure = ok & np.isfinite(sigma_xy)
     if sure.sum() >= st.min_measured_frames:
         typical = float(np.median(sigma_xy[sure & ~clicked] if (sure & ~clicked).any()
