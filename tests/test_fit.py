@@ -162,7 +162,7 @@ def _entropy():
 
 
 @pytest.mark.parametrize("noise_class,noise_m,min_hits", [("white", 0.002, 16),
-                                                          ("steps", 0.05, 15)])
+                                                          ("steps", 0.05, 14)])
 def test_position_only_10hz_clockwise_draw_from_1s(noise_class, noise_m, min_hits):
     """A 10 Hz x, y series (no theta) of a clockwise draw whose first row is 1 s after
     release, simulated (curved path, tapered a_T): lambda_y within its 2 sigma."""
@@ -187,8 +187,9 @@ def test_position_only_10hz_clockwise_draw_from_1s(noise_class, noise_m, min_hit
         assert v["a_T"] > 0, seed  # clockwise spin curls to +x
         hits += abs(v["lambda_y"] - m.lambda_y) <= 2 * e["lambda_y"]
     # 20 draws. White noise: 2 sigma should hold for 95 % (P(< 16 hits) = 0.3 %). Under an
-    # instrument's persisting steps the measured coverage is ~90 % (18/20 in a run of
-    # 20): P(< 15 hits | 90 %) = 1.1 %, while 80 % or worse coverage fails most runs.
+    # instrument's persisting steps (~10 effective points per coordinate) the measured
+    # coverage is 90 % (135/150 draws, with fit.small_sample_factor; 85 % without it):
+    # P(< 14 hits | 90 %) = 0.2 %, while 70 % coverage fails 4 runs in 10.
     assert hits >= min_hits, f"seed {seed}: lambda_y within 2 sigma in {hits}/20"
 
 

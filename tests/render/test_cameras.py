@@ -247,7 +247,7 @@ def test_variable_timing_drops_rotation_and_bitrate_in_the_container(tmp_path, c
     target = float(rng.uniform(2e5, 6e5))
     cfg = RenderConfig(width=320, height=240, fps=60.0, stopped_tail_s=0.0,
                        sensor=SensorConfig(frame_jitter_s=float(rng.uniform(5e-4, 2e-3)),
-                                           drop_rate=float(rng.uniform(0.05, 0.2))),
+                                           drop_rate=float(rng.uniform(0.15, 0.3))),  # (P(no drop) < 1e-4)
                        encoding=EncodingConfig(codec=codec, bitrate_bps=target,
                                                rotation_deg=rotation))
     shot = closed_form_shot(y_F=1.5, t_F=1.5, theta_F=2.0, duration=1.0)
