@@ -119,6 +119,9 @@ def _sample(verdict, image, rig, det):
         out["rock_px"] = rig.rock_diameter_m * float(np.hypot(*(xy[0] - xy[1]))) / sep_m
     cal = verdict.calibration
     if cal is None:
+        # the camera's turn is measured even where track could not follow the grid (a
+        # turn too fast for it): from a calibration of this frame alone
+        out["yaw_deg"] = _yaw_alone(image, rig, det, xy)
         return out
     out["grid"] = True
     out["spacing_px"], out["residual_px"] = float(cal.spacing_px), float(cal.residual_px)
@@ -136,7 +139,26 @@ def _sample(verdict, image, rig, det):
     return out
 
 
-def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES, frames=None) -> DoctorReport:
+def _yaw_alone(image, rig, det, markers_px):
+    """The lattice's angle in the image (deg) from a calibration of ``image`` alone (the
+    rock masked when its markers were found), or None."""
+    import cv2
+
+    from .track.pipeline import _calibrate, blank_frame, rock_disc
+
+    if image is None or blank_frame(image, rig.tracking):
+        return None
+    mask = None
+    if markers_px is not None:
+        mask = np.zeros(image.shape[:2], np.uint8)
+        (x, y), rad = rock_disc(det.layout_m, markers_px, rig.rock_diameter_m)
+        cv2.circle(mask, (x, y), rad, 255, -1)
+    cal, _ = _calibrate(image, rig, mask)
+    return None if cal is None else cal.yaw_deg()
+
+
+def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES, frames=None,
+             progress: bool | None = False) -> DoctorReport:
     """Check a video and a rig before tracking.
 
     Parameters
@@ -149,10 +171,14 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES, frames=None) -> Doctor
         Frames to examine, spread evenly from the first to the last.
     frames : iterable of int, optional
         Examine these frames instead.
+    progress : bool or None
+        A progress bar on stderr while track's loop runs up to the last frame examined
+        (None: when stderr is a terminal).
 
-    Each frame is judged as ``track`` judges it (:func:`curltrack.track.check.check_frames`:
-    the same steps, thresholds and messages), so a frame doctor calls lost is ``ok`` = 0
-    in ``track``'s output and the reverse (``frames`` check).
+    Each frame is judged by ``track``'s own per-frame loop, run from the video's start
+    (:func:`curltrack.track.check.check_frames`: the same steps, thresholds and
+    messages), so a frame doctor calls lost is ``ok`` = 0 in ``track``'s output and the
+    reverse (``frames`` check).
 
     Returns
     -------
@@ -160,6 +186,7 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES, frames=None) -> Doctor
         ``report.ok`` is False when ``track`` cannot succeed.  Raises nothing for a bad
         video: an unreadable file is a failed ``video`` check.
     """
+    from .progress import progress_bar
     from .track.check import check_frames, frame_reader
     from .track.markers import MarkerDetector
     from .video import probe_video
@@ -207,9 +234,13 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES, frames=None) -> Doctor
     read = frame_reader(video, info.n_frames, rig.fps)
     found = {}
     try:
-        for i in sorted(set(idx.tolist()) | set(nxt)):
-            verdict, = check_frames(read, [i], rig, detector=det)
-            found[i] = _sample(verdict, read(i), rig, det)
+        judged = sorted(set(idx.tolist()) | set(nxt))
+        with progress_bar("doctor: track's loop", judged[-1] + 1 if judged else 0,
+                          enabled=progress) as advance:
+            verdicts = check_frames(video, judged, rig, fps_override=rig.fps,
+                                    progress=advance)
+        for verdict in verdicts:
+            found[verdict.frame] = _sample(verdict, read(verdict.frame), rig, det)
     except CurltrackError as exc:
         rep.checks.append(Check("decode", "fail", str(exc), "the file is damaged; re-export"))
         return rep

@@ -22,15 +22,19 @@ from .._stats import median, robust_sigma
 from .lens import apply_h, undistort
 
 MIN_PERIOD_PX = 16.0  # shortest thread spacing looked for (px)
+#: The two families' periods may differ from the rig's cell ratio by this (relative):
+#: tilt and perspective change it by a few %.  Further off, the weaker family's period
+#: is looked for within this of where the stronger one puts it.
+PERIOD_RATIO_TOL = 0.08
 
 
-def _fundamental_period(rel, w, normal, min_period, max_period):
+def _fundamental_period(rel, w, normal, min_period, max_period, near=None):
     """Period (px) of the threads across ``normal``: first strong autocorrelation peak.
 
     The weighted histogram of the pixels' positions along the normal (0.5 px bins) of a
     set of parallel threads is periodic; its autocorrelation peaks at the period and its
     multiples.  Returns (period, normalised autocorrelation there), or None without a
-    clear peak.
+    clear peak.  With ``near`` = (lo, hi) px: the strongest peak between those lags.
     """
     s = rel @ normal
     lo, hi = s.min(), s.max()
@@ -49,10 +53,21 @@ def _fundamental_period(rel, w, normal, min_period, max_period):
     ok = (lags >= min_period) & (lags <= min(max_period, 0.5 * (hi - lo)))
     if not ok.any() or ac[0] <= 0:
         return None
+    if near is not None:
+        ok &= (lags >= near[0]) & (lags <= near[1])
+        if ok.sum() < 3:
+            return None
     idx = np.nonzero(ok)[0]
     top = ac[idx].max()
     if top < 0.2 * ac[0]:
         return None
+    if near is not None:
+        i = idx[np.argmax(ac[idx])]
+        if i in (idx[0], idx[-1]):  # (a slope, not a peak)
+            return None
+        den = ac[i - 1] - 2 * ac[i] + ac[i + 1]
+        d = 0.5 * (ac[i - 1] - ac[i + 1]) / den if den < 0 else 0.0
+        return float((i + d) * 0.5), float(ac[i] / ac[0])
     for i in idx[1:-1]:
         if ac[i] >= 0.6 * top and ac[i] >= ac[i - 1] and ac[i] >= ac[i + 1]:
             # parabolic sub-bin refinement
@@ -166,6 +181,17 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
             found.append((normal, res[0], res[1] * (0.5 if axis else 1.0)))
     if not found:
         return None
+    # A family whose spectral peak was not among the strongest (faint threads, a codec's
+    # 16 px blocks stronger along the image axis) is looked for across the strongest
+    # family: perpendicular to it, at the period the rig's cell ratio puts it.
+    strongest = max(found, key=lambda c: c[2])
+    perp = np.array([-strongest[0][1], strongest[0][0]])
+    for r in sorted({cell_ratio, 1.0 / cell_ratio}):
+        lag = strongest[1] * r
+        res = _fundamental_period(rel[near], w[near], perp, min_period, max_period,
+                                  (lag * (1 - PERIOD_RATIO_TOL), lag * (1 + PERIOD_RATIO_TOL)))
+        if res is not None:
+            found.append((perp, res[0], res[1]))
     # The best pair: nearly perpendicular (a rectangular lattice seen from above) with the
     # period ratio of the rig's cell (perspective and tilt change it by a few per cent).
     best, pair = -np.inf, None
@@ -180,6 +206,19 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
                 best, pair = c1[2] + c2[2], (c1, c2)
     if pair is None:
         return None
+    # A family of faint threads (a weak colour, thin threads) can give its stack's
+    # period a few px off: the rig's cell ratio, within what perspective and tilt change
+    # (a few %), says where its period lies from the stronger family's; look there.
+    strong, weak = sorted(pair, key=lambda c: -c[2])
+    ratio = weak[1] / strong[1]
+    target = min((cell_ratio, 1.0 / cell_ratio), key=lambda r: abs(np.log(ratio / r)))
+    if abs(np.log(ratio / target)) > PERIOD_RATIO_TOL:
+        lag = strong[1] * target
+        window = (lag * (1 - PERIOD_RATIO_TOL), lag * (1 + PERIOD_RATIO_TOL))
+        res = _fundamental_period(rel[near], w[near], weak[0], min_period, max_period, window)
+        if res is not None:
+            weak = (weak[0], res[0], weak[2])
+    pair = (strong, weak)
     rows = []
     for normal, period, _ in pair:
         k, s = _refine_wavevector(rel[near], w[near], normal / period)

@@ -35,14 +35,13 @@ def calibrate(
     from .._atomic import atomic_path, write_json
     from ..errors import TrackingError
     from ..rig import load_rig
-    from ..track.check import check_frames, frame_reader
+    from ..track.check import check_frames
     from ..video import read_frame
 
     check_outputs([source, rig], [("-o", output), ("--overlay", overlay)])
     r = load_rig(rig)
     image = read_frame(source, frame)  # (a frame out of range: the reader's error)
-    read = frame_reader(source, fps_override=r.fps)
-    verdict, = check_frames(read, [frame], r)
+    verdict, = check_frames(source, [frame], r, fps_override=r.fps)
     if debug_dir is not None:
         from ..track.overlay import write_verdict_frame
 

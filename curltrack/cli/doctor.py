@@ -25,8 +25,9 @@ def doctor(
     colour, the thread grid (spacing px, residual px), the rock's size (px) and the camera
     height implied by the parallax (m).
 
-    Each frame examined is judged as `track` judges it (the same steps and the rig's
-    [tracking] thresholds): the `frames` line says which track will give ok = 0, and why.
+    Each frame examined is judged by `track`'s own per-frame loop, run from the video's
+    start (the same steps and the rig's [tracking] thresholds): the `frames` line says
+    which track will give ok = 0, and why.
     Prints a checklist (✓ ok, ! warning, ✗ fatal) with advice.  Exit status 1 when
     something is fatal (track would fail), 0 otherwise.
     """
@@ -40,7 +41,7 @@ def doctor(
 
     check_outputs([video, rig], [("-o", output)])
     chosen = parse_frame_list(frames, where="--frames") if frames else None
-    report = diagnose(video, load_rig(rig), n_samples=samples, frames=chosen)
+    report = diagnose(video, load_rig(rig), n_samples=samples, frames=chosen, progress=None)
     data = report.to_dict()
     if output is not None:
         write_json(output, data)

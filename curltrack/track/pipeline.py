@@ -25,8 +25,11 @@ from .parallax import similarity_fit
 
 __all__ = ["track_video", "FrameRecord"]
 
-#: Full-frame marker search: every frame at first, then every n-th frame while lost.
+#: Full-frame marker search: every frame until the markers are first found and for the
+#: first ``FULL_SEARCH_FRAMES`` frames of a loss (as ``doctor`` looks at any frame), then
+#: every ``SEARCH_EVERY``-th frame while the loss lasts (a rock that left the view).
 SEARCH_EVERY = 5
+FULL_SEARCH_FRAMES = 15
 # Thresholds (frames without markers before giving up, the blank-frame level, the
 # anchor's longest gap) are the rig's TrackingSettings (curltrack.settings).
 
@@ -69,6 +72,9 @@ class FrameRecord:
     outline_m: float = np.nan  # radius of the rock's outline (m, lattice; track.outline)
     notes: list = dc_field(default_factory=list)
     clicked: bool = False  # measured from a corrections file's clicks
+    markers_found: tuple = ()  # per rig marker (doctor's checklist)
+    pose: object = None  # the grid's GridPose here (track_frames(strict=False) only)
+    grid_status: str = ""  # why the grid was not measured here ("" when it was)
 
 
 def rock_in_image(layout_m, markers_px, rock_diameter_m: float):
@@ -119,7 +125,7 @@ class _Follower:
     def detect(self, image, frame):
         pred = self.predicted(frame)
         if pred is None or self.lost > 3:
-            if self.lost % SEARCH_EVERY and self.lost > 3:
+            if self.hist and self.lost > FULL_SEARCH_FRAMES and self.lost % SEARCH_EVERY:
                 self.lost += 1
                 return None
             mf = self.det.detect(image)
@@ -223,7 +229,7 @@ def _calibrate(image, rig, mask):
 
 
 def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int = 2,
-                 row_time=None) -> tuple[list[FrameRecord], dict]:
+                 row_time=None, strict: bool = True) -> tuple[list[FrameRecord], dict]:
     """Run the per-frame loop over an iterable of :class:`curltrack.video.Frame`.
 
     ``row_time(markers_px, image_shape)``, when given (a rolling shutter,
@@ -233,10 +239,14 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     The rock's outline (the scale check's second ruler) is measured on every
     ``outline_every``-th frame.
 
+    ``strict`` = False (doctor's and calibrate's few frames) never gives up: frames
+    without markers or grid keep their reasons and the records are returned.
+
     Returns
     -------
     (records, info) : list of FrameRecord, dict
-        ``info`` holds the calibration (``calib``) and the focal/principal point data.
+        ``info`` holds the calibration (``calib``, made on frame ``calib_frame``) and
+        the focal/principal point data.
     """
     from ..calib import GridTracker
     from ..calib.grid import pixel_scale, pixel_steps
@@ -248,6 +258,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     tracker = None
     calib = None
     calib_msg = ""
+    calib_frame = None
     records: list[FrameRecord] = []
     L = det.layout_m
     seen_markers = False
@@ -265,30 +276,33 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             continue
         mf = fol.detect(img, k)
         found = mf is not None and bool(mf.found.all())
+        rec.markers_found = (tuple(bool(f) for f in mf.found) if mf is not None
+                             else (False,) * len(L))
         if not found:
             rec.status = ("rock/markers not found" if mf is None else
                           f"markers not found ({mf.message})")
-            if not seen_markers:
-                if len(records) >= st.give_up_frames:
-                    raise TrackingError(
-                        f"no markers of the rig's colours "
-                        f"({', '.join(m.color for m in rig.markers)}) found in frames "
-                        f"{records[0].frame}-{fr.index}", path=path, where=f"frame {fr.index}")
-                continue
-        seen_markers = True
-        mask = fol.mask(img.shape, k)
+            if strict and not seen_markers and len(records) >= st.give_up_frames:
+                raise TrackingError(
+                    f"no markers of the rig's colours "
+                    f"({', '.join(m.color for m in rig.markers)}) found in frames "
+                    f"{records[0].frame}-{fr.index}", path=path, where=f"frame {fr.index}")
+        seen_markers = seen_markers or found
+        mask = fol.mask(img.shape, k)  # (nothing masked before the markers were found)
         if tracker is None:
-            if not found:
-                continue
-            calib, calib_msg = _calibrate(img, rig, mask)
+            # The grid is calibrated on the first frame where that works, with or without
+            # the markers found (the rock then unmasked), and followed from there: a
+            # frame is measurable as soon as its markers are found, as doctor judges it.
+            calib, calib_msg = _calibrate(img, rig, mask if found else None)
             if calib is None:
-                rec.status = f"grid not found ({calib_msg})"
-                if len(records) >= st.give_up_frames:
+                rec.grid_status = f"grid not found ({calib_msg})"
+                if found:
+                    rec.status = rec.grid_status
+                if strict and len(records) >= st.give_up_frames and seen_markers:
                     raise TrackingError(f"no grid found in frames {records[0].frame}-"
                                         f"{fr.index}: {calib_msg}", path=path,
                                         where=f"frame {fr.index}")
                 continue
-            tracker = GridTracker(calib, rig)
+            tracker, calib_frame = GridTracker(calib, rig), fr.index
         # The grid is followed in every frame, also while the markers are hidden (a
         # broom), so that its motion prediction - and the cell index - stay current.
         anchor = None
@@ -300,6 +314,10 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         pose = tracker.update(img, k, mask=mask, anchor=anchor)
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px
+        if not strict:  # (doctor's few frames: the pose whole; track keeps H only)
+            rec.pose = pose
+        if not pose.ok:
+            rec.grid_status = f"grid: {pose.message}"
         if not found:
             continue
         rec.markers_px = mf.xy_px
@@ -334,6 +352,10 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         rec.contrast = float(np.min(mf.contrast))
         if pose.message:
             rec.notes.append(pose.message)
+    info = {"calib": calib, "calib_msg": calib_msg, "calib_frame": calib_frame,
+            "n_markers": len(L)}
+    if not strict:
+        return records, info
     if records and not seen_markers:
         raise TrackingError(
             f"no markers of the rig's colours ({', '.join(m.color for m in rig.markers)}) "
@@ -341,7 +363,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     if records and calib is None:
         raise TrackingError(f"no grid found in frames {records[0].frame}-{records[-1].frame}"
                             f": {calib_msg}", path=path)
-    return records, {"calib": calib, "calib_msg": calib_msg, "n_markers": len(L)}
+    return records, info
 
 
 def track_video(video_path, rig: Rig, start_frame: int | None = None,

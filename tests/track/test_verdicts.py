@@ -3,10 +3,11 @@
 A rendered clip gets lost frames - black, frozen (the previous frame again), defocused
 (the threads and markers vanish) - at random places, and a broom may pass.  ``track``'s
 ``ok`` per frame is compared with ``doctor``'s per-frame verdicts and ``calibrate``'s
-exit status on those frames and on random untouched ones.  The only refusals a single
-frame cannot show are ``track``'s judgements against the frames before it (a poor fit
-against the typical residual, a cell index that jumped or was not re-anchored, a marker
-layout unlike the rest of the video): such frames are left out, and must be few.
+exit status on those frames and on random untouched ones.  Doctor and calibrate run
+track's own per-frame loop from the video's start to the judged frames; the refusals
+that rest on the whole series (a poor fit against the shot's typical
+residual, a sigma outlier, a marker layout unlike the rest of the video) are not theirs:
+such frames are left out, and must be few.
 """
 
 import re
@@ -67,14 +68,8 @@ def _track_reasons(series) -> dict:
     return out
 
 
-@pytest.mark.slow  # (one frame of ~16 disagrees on ~1 clip in 6: see the docstring)
 def test_doctor_and_calibrate_agree_with_track_on_lost_frames(tmp_path):
-    """Doctor's and calibrate's verdicts equal track's on lost and untouched frames.
-
-    Not yet on every clip: track follows the rock and the grid from frame to frame and
-    after a loss searches the whole frame only every few frames, so on about one random
-    clip in six one frame differs (a marker track lost that doctor finds on its own, or
-    the reverse); measured over 12 runs on 2026-11-25."""
+    """Doctor's and calibrate's verdicts equal track's on lost and untouched frames."""
     from typer.testing import CliRunner
 
     from curltrack.cli import app
