@@ -117,17 +117,19 @@ def _sample(verdict, image, rig, det):
     if xy is not None:
         sep_m = float(np.hypot(*(L[0] - L[1])))
         out["rock_px"] = rig.rock_diameter_m * float(np.hypot(*(xy[0] - xy[1]))) / sep_m
+    # The camera's turn between frames: from a calibration of each frame alone (lens
+    # and lattice fitted on the frame itself: the most precise angle, and measured also
+    # where track could not follow the grid - a turn too fast for it)
+    out["yaw_deg"] = _yaw_alone(image, rig, det, xy)
     cal = verdict.calibration
     if cal is None:
-        # the camera's turn is measured even where track could not follow the grid (a
-        # turn too fast for it): from a calibration of this frame alone
-        out["yaw_deg"] = _yaw_alone(image, rig, det, xy)
         return out
     out["grid"] = True
     out["spacing_px"], out["residual_px"] = float(cal.spacing_px), float(cal.residual_px)
     out["n_threads"] = list(cal.n_threads)
     out["lens"] = (float(cal.dist[0]), float(cal.dist[1]), cal.lens_radius_px)
-    out["yaw_deg"] = cal.yaw_deg()  # image +u in the lattice
+    if out["yaw_deg"] is None:
+        out["yaw_deg"] = cal.yaw_deg()  # image +u in the lattice
     if xy is not None:
         ice = cal.image_to_ice(xy)
         if np.isfinite(ice).all():
