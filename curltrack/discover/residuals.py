@@ -92,8 +92,14 @@ def runs_test(r) -> tuple[float, float]:
     return float(z), float(stats.norm.cdf(z))
 
 
-def binned_means(r, key, n_bins: int = 10) -> dict:
+def binned_means(r, key, n_bins: int = 10, noise_dof: float = np.inf) -> dict:
     """Chi-square of bin means of ``r`` against a covariate ``key`` (equal-count bins).
+
+    ``noise_dof``: the degrees of freedom of the noise level ``r`` was scaled by.  A level
+    measured from few independent stretches (an instrument's errors that persist for
+    seconds: a 20 s shot holds a handful) is itself uncertain, and the statistic over
+    ``n_bins`` is then F(n_bins, noise_dof)-distributed, not chi-square: its p-value is
+    the F's (the same chi2 and z are reported).
 
     Returns
     -------
@@ -109,7 +115,9 @@ def binned_means(r, key, n_bins: int = 10) -> dict:
     z = np.array([r[c].sum() / np.sqrt(len(c)) for c in chunks])
     chi2 = float(np.sum(z**2))
     worst = int(np.argmax(np.abs(z)))
-    return {"chi2": chi2, "dof": n_bins, "p": float(stats.chi2.sf(chi2, n_bins)),
+    p = (float(stats.chi2.sf(chi2, n_bins)) if not np.isfinite(noise_dof) else
+         float(stats.f.sf(chi2 / n_bins, n_bins, max(noise_dof, 1.0))))
+    return {"chi2": chi2, "dof": n_bins, "p": p,
             "lo": float(key[chunks[worst]].min()), "hi": float(key[chunks[worst]].max()),
             "z": float(z[worst])}
 
@@ -142,6 +150,26 @@ class Segment:
     #: correlation time (samples) the noise itself leaves in ``r`` (see
     #: :func:`curltrack.series.noise.residual_structure`)
     tau: float = 1.0
+    #: degrees of freedom of the noise level ``r`` is scaled by (inf: the AR(1) model's,
+    #: from every second difference; a persisting noise's: :func:`noise_dof`)
+    noise_dof: float = np.inf
+
+
+def noise_dof(t, tau: float) -> float:
+    """Degrees of freedom of a persisting noise's level measured on times ``t`` (s).
+
+    For ``tau`` <= :data:`~curltrack.series.noise.CORRELATED_TAU` (the AR(1) model whitened
+    the noise) inf.  Else the level is :func:`~curltrack.series.noise.residual_structure`'s
+    median of window sums over ``WINDOW_S``: about ``T / WINDOW_S`` independent windows,
+    and a median of chi-square(1) values is as precise as a variance estimate with 0.37
+    times as many degrees of freedom (its asymptotic relative variance, 5.4 / m, against
+    2 / nu).
+    """
+    from ..series.noise import WINDOW_S
+
+    if tau <= CORRELATED_TAU or len(t) < 2:
+        return np.inf
+    return max(1.0, 0.37 * float(np.ptp(t)) / WINDOW_S)
 
 
 @dataclass
@@ -195,7 +223,7 @@ def structure_tests(segments, level: float = STRUCTURE_LEVEL) -> StructureResult
         for cov, key in (("time", seg.t), ("position_y", seg.y), ("speed", seg.speed)):
             if np.ptp(key) <= 0:
                 continue
-            b = binned_means(seg.r, key)
+            b = binned_means(seg.r, key, noise_dof=seg.noise_dof)
             tests.append({**base, "test": f"binned_{cov}", "stat": b["chi2"], "p": b["p"],
                           "lo": b["lo"], "hi": b["hi"], "z": b["z"]})
     lateral = [s for s in segments if s.coord == "x" and s.r.size >= 20]

@@ -357,7 +357,7 @@ def segments_of(model: JointModel, fit: FitOut, noise=None):
 
     ``noise`` (one ``(inflation, tau)`` per segment, :func:`residual_noise`) scales the
     residuals by the noise the AR(1) model left in them."""
-    from .residuals import Segment
+    from .residuals import Segment, noise_dof
 
     out = []
     noise = noise or [(1.0, 1.0)] * len(model.segments)
@@ -370,7 +370,7 @@ def segments_of(model: JointModel, fit: FitOut, noise=None):
         vy = np.gradient(pred["y"], t) if t.size > 1 else np.zeros_like(t)
         speed = np.hypot(vx, vy)
         out.append(Segment(j, c, fit.r[sl] / np.sqrt(infl), t[use], pred["y"][use],
-                           speed[use], s.spin, tau=tau))
+                           speed[use], s.spin, tau=tau, noise_dof=noise_dof(t[use], tau)))
     return out
 
 
