@@ -154,7 +154,10 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
     if h0_loso is not None and "shot" in sc.heldout:
         kw.update(loso_rmse_before=h0_loso["scalar"],
                   loso_rmse_after=sc.heldout["shot"]["scalar"])
-        ok_cv = ok_cv or kw["loso_rmse_after"] < kw["loso_rmse_before"]
+        # an effect of one shot (a pick) says nothing about the shots left out: a
+        # leave-one-shot-out gain is then the refit's noise, not prediction
+        if not sc.per_shot:
+            ok_cv = ok_cv or kw["loso_rmse_after"] < kw["loso_rmse_before"]
     kw["supported"] = bool(sc.delta_bic > max(thr, 0.0) and ok_cv)
     if kw["supported"]:
         kw["not_named_because"] = _blockers(kw, cand_bounds)

@@ -72,6 +72,8 @@ class CandidateScore:
     chi2_gain: float | None = None
     noise: list | None = None
     extension: bool = False
+    #: the effect acts on one shot (a pick): leaving that shot out cannot test it
+    per_shot: bool = False
     #: profile-likelihood errors of an extension's parameters (:mod:`.profile`) and the
     #: fit's covariance rescaled to them (None: not profiled)
     profile: dict | None = None
@@ -186,7 +188,7 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, segments_slices, rng,
                                       level=_level(cand), n_boot=n_boot)
     loc = dict(locs[i_loc])
     score = CandidateScore(cand.name, lin, lin, thr, None, loc, note=cand.note, k=k,
-                           extension=cand.extension)
+                           extension=cand.extension, per_shot=cand.per_shot)
     score._scan = (sub_cols, ks)  # for the threshold under the candidate's own noise
     if sum(b.shape[1] for b in bases) == 0:
         score.note += "; not identifiable with these shots (degenerate with the baseline)"
