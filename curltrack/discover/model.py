@@ -132,6 +132,8 @@ class JointModel:
         self.R, self.r_band = rig.inertia_radius_m, rig.band_radius_m
         self.shots, self.baseline, self.cand = shots, baseline, cand
         self._sims: dict = {}
+        #: (parameter values, {name: Jacobian column}) of the last Jacobian
+        self._jcols: tuple | None = None
         self.values: dict = {}
         self.bounds: dict = {}
         self.free: list = []
@@ -291,11 +293,25 @@ class JointModel:
         return st if st is not None else max(1e-4 * abs(value), 1e-9)
 
     def jacobian_raw(self, values, base_vec=None, base_preds=None):
-        """Forward-difference d(model)/d(free params) over the used rows (physical)."""
-        if base_vec is None:
+        """Forward-difference d(model)/d(free params) over the used rows (physical).
+
+        The columns of the last point are kept: a column depends only on the parameter
+        values, so the fit's final Jacobian (the solver's last one is usually at its
+        solution) and the first of a fit that continues from there with more parameters
+        free (a scanned location released) are not recomputed.
+        """
+        key = (tuple(sorted(values.items())),
+               tuple(sorted((self.cand_fixed or {}).items())))
+        if self._jcols is None or self._jcols[0] != key:
+            self._jcols = (key, {})
+        done = self._jcols[1]
+        if base_vec is None and not all(n in done for n in self.free):
             base_vec, base_preds = self._model_vector(values)
         J = np.empty((self.n, len(self.free)))
         for k, name in enumerate(self.free):
+            if name in done:
+                J[:, k] = done[name]
+                continue
             h = self._step(name, values[name])
             lo, hi = self.bounds[name]
             if hi is not None and values[name] + h > hi:
@@ -305,6 +321,7 @@ class JointModel:
             aff = self._affected(name)
             vec, _ = self._model_vector(v2, shots=aff, cache=None if aff is None else base_preds)
             J[:, k] = (vec - base_vec) / h
+            done[name] = J[:, k].copy()
         return J
 
     def fit(self, max_nfev: int = 60, name: str = "<shots>", tol: float = 1e-8) -> FitOut:

@@ -247,3 +247,34 @@ def test_false_alarm_rate_on_clean_series():
         if rep["verdict"] != "none":
             bad.append(rep["verdict"])
     assert len(bad) <= 2, bad
+
+
+def test_reused_jacobian_columns_are_the_recomputed_ones():
+    """The fit keeps the last Jacobian's columns (a column depends only on the parameter
+    values): its final Jacobian, and the first of a fit continued with one more
+    parameter free, equal a fresh model's to the last bit."""
+    from curltrack.discover.model import JointModel
+    from curltrack.discover.shots import shot_from_series
+
+    seed = int(np.random.default_rng().integers(2**31))
+    rng = np.random.default_rng(seed)
+    shots, _ = make_case("none", 0.0, rng)
+    m = JointModel([shot_from_series(s) for s in shots])
+    held = m.free.pop(m.free.index("a_T"))
+    f1 = m.fit(max_nfev=40)
+    fresh = JointModel(m.shots)
+    fresh.free = list(m.free)
+    assert np.array_equal(f1.J_raw, fresh.jacobian_raw(f1.values)), f"seed {seed}"
+    m.free.append(held)
+    n_cols = {"n": 0}
+    sim = m._simulate
+
+    def counted(*a, **k):
+        n_cols["n"] += 1
+        return sim(*a, **k)
+
+    m._simulate = counted
+    J = m.jacobian_raw(m.values)
+    fresh.free = list(m.free)
+    assert np.array_equal(J, fresh.jacobian_raw(m.values)), f"seed {seed}"
+    assert n_cols["n"] <= 1, f"seed {seed}: only a_T's column is new"
