@@ -17,7 +17,7 @@ from dataclasses import dataclass, field as dc_field
 
 import numpy as np
 
-from ..errors import TrackingError
+from ..errors import CurltrackError, TrackingError
 from ..rig import Rig
 from .markers import MarkerDetector
 from .outline import outline_radius
@@ -469,38 +469,43 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
 
     report = progress if callable(progress) else None
     progress = bool(progress) and report is None
-    try:
-        with threadpool_limits(limits=max(n_threads, 1), user_api="blas"), \
-                progress_bar("tracking", total, enabled=progress) as advance:
-            records, loop_info = track_frames(
-                frames, rig, path=video_path,
-                progress=_counting(advance, report, total) if progress or report else None,
-                outline_every=max(2, total // OUTLINE_FRAMES),
-                row_time=_row_time(rig, info, fields))
-    finally:
-        cv2.setNumThreads(threads_before)
-    blank = _blank_lead(records) if start_frame is None else 0
-    if blank:  # black / empty frames before the scene: t = 0 at the first real frame
-        records, start = records[blank:], records[blank].frame
-        t0 = records[0].t
-        for r in records:
-            r.t -= t0
-        exclude = [i for i in exclude if i >= start]
-    # Excluded frames are rows too (ok = 0), at their nominal time.
-    dt = 1.0 / info.fps
-    by_frame = {(r.frame, r.field or 0): r for r in records}
-    t_of = _time_interpolator([r for r in records if not r.field], start, dt)
-    for i in exclude:
-        for fld in ((0, 1) if fields else (None,)):
-            by_frame[(i, fld or 0)] = FrameRecord(i, t_of(i) + 0.5 * dt * (fld or 0),
-                                                  status="excluded by the user", field=fld)
-    records = [by_frame[i] for i in sorted(by_frame)]
-    corr_warnings = []
-    if corr is not None:
-        from .corrections import apply_corrections
+    try:  # (the frames a user asked to see matter most when the video is refused)
+        try:
+            with threadpool_limits(limits=max(n_threads, 1), user_api="blas"), \
+                    progress_bar("tracking", total, enabled=progress) as advance:
+                records, loop_info = track_frames(
+                    frames, rig, path=video_path,
+                    progress=_counting(advance, report, total) if progress or report else None,
+                    outline_every=max(2, total // OUTLINE_FRAMES),
+                    row_time=_row_time(rig, info, fields))
+        finally:
+            cv2.setNumThreads(threads_before)
+        blank = _blank_lead(records) if start_frame is None else 0
+        if blank:  # black / empty frames before the scene: t = 0 at the first real frame
+            records, start = records[blank:], records[blank].frame
+            t0 = records[0].t
+            for r in records:
+                r.t -= t0
+            exclude = [i for i in exclude if i >= start]
+        # Excluded frames are rows too (ok = 0), at their nominal time.
+        dt = 1.0 / info.fps
+        by_frame = {(r.frame, r.field or 0): r for r in records}
+        t_of = _time_interpolator([r for r in records if not r.field], start, dt)
+        for i in exclude:
+            for fld in ((0, 1) if fields else (None,)):
+                by_frame[(i, fld or 0)] = FrameRecord(i, t_of(i) + 0.5 * dt * (fld or 0),
+                                                      status="excluded by the user", field=fld)
+        records = [by_frame[i] for i in sorted(by_frame)]
+        corr_warnings = []
+        if corr is not None:
+            from .corrections import apply_corrections
 
-        corr_warnings = apply_corrections(records, corr, loop_info["calib"], rig)
-    series = build_series(records, rig, info, start, loop_info, path=video_path)
+            corr_warnings = apply_corrections(records, corr, loop_info["calib"], rig)
+        series = build_series(records, rig, info, start, loop_info, path=video_path)
+    except CurltrackError:
+        if debug_dir is not None and len(debug_frames):
+            _write_verdict_frames(video_path, debug_dir, debug_frames, rig)
+        raise
     if corr is not None:
         series.meta["corrections"] = {
             "file": corr["file"], "click_sigma_px": corr["click_sigma_px"],
@@ -523,6 +528,21 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         write_debug_frames(video_path, debug_dir, debug_frames, records, series,
                            loop_info["calib"], rig)
     return series
+
+
+def _write_verdict_frames(video_path, debug_dir, frames, rig) -> None:
+    """``calibrate``'s PNG of each of ``frames`` (track's verdict on it, from track's
+    own loop), for a video whose series could not be built."""
+    from pathlib import Path
+
+    from ..video import read_frame
+    from .check import check_frames
+    from .overlay import write_verdict_frame
+
+    Path(debug_dir).mkdir(parents=True, exist_ok=True)
+    for verdict in check_frames(video_path, sorted(set(int(f) for f in frames)), rig,
+                                fps_override=rig.fps):
+        write_verdict_frame(debug_dir, read_frame(video_path, verdict.frame), verdict, rig)
 
 
 def _counting(advance, report, total: int):

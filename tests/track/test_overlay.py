@@ -138,3 +138,32 @@ def test_debug_frames_show_what_was_found(tmp_path):
         centre = red.mean(axis=0)
         err = np.hypot(*(centre - truth.loc[f, ["u_px", "v_px"]].to_numpy(float)))
         assert len(red) > 10 and err < 2.0, f"frame {f}: cross {err:.1f} px off (seed {seed})"
+
+
+def test_debug_frames_written_when_the_video_is_refused(tmp_path):
+    """A video track refuses (here: the rig names a marker colour the rock does not carry,
+    so no frame is measured) still gets its `--debug-dir` PNGs - calibrate's picture of
+    each asked frame with track's reason - before the error."""
+    from dataclasses import replace
+
+    import cv2
+
+    from curltrack.errors import TrackingError
+    from curltrack.render import RenderConfig, render_video
+    from curltrack.rig import Marker
+    from curltrack.track import track_video
+
+    seed = int(np.random.SeedSequence().entropy % 2**31)
+    rng = np.random.default_rng(seed)
+    rig = default_rig()
+    sim = simulate_series(ShotModel(v0=rng.uniform(0.4, 0.6), omega0=1.0, alpha_y=0.03), fps=30)
+    render_video(sim, rig, tmp_path / "v.mp4", config=RenderConfig(
+        width=480, height=270, blur_subframes=1), seed=seed)
+    m0 = rig.markers[0]
+    wrong = replace(rig, markers=(Marker("#ff00ff", m0.x_m, m0.y_m),) + rig.markers[1:])
+    frames = sorted(rng.choice(np.arange(0, 20), 2, replace=False).tolist())
+    with pytest.raises(TrackingError):
+        track_video(tmp_path / "v.mp4", wrong, debug_frames=frames, debug_dir=tmp_path / "dbg")
+    for f in frames:
+        img = cv2.imread(str(tmp_path / "dbg" / f"frame_{f:06d}.png"))
+        assert img is not None and img.shape == (270, 480, 3), (seed, f)
