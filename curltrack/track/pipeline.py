@@ -22,6 +22,7 @@ from ..rig import Rig
 from .markers import MarkerDetector
 from .outline import outline_radius
 from .parallax import similarity_fit
+from .shutter import to_one_instant
 
 __all__ = ["track_video", "FrameRecord"]
 
@@ -75,6 +76,9 @@ class FrameRecord:
     markers_found: tuple = ()  # per rig marker (doctor's checklist)
     pose: object = None  # the grid's GridPose here (track_frames(strict=False) only)
     grid_status: str = ""  # why the grid was not measured here ("" when it was)
+    # rolling shutter, a segment's first frames: (markers on the ice, their readout
+    # offsets) until the frames after give the rock's rate (_settle_shutter)
+    shutter_pending: tuple | None = None
 
 
 def rock_in_image(layout_m, markers_px, rock_diameter_m: float):
@@ -200,18 +204,53 @@ def blank_frame(image, settings) -> bool:
     return float(image[::8, ::8].std()) < settings.blank_std
 
 
+def _rock_rate(records, rec, max_gap_s: float = 0.2, after: bool = False):
+    """The rock's velocity on the ice (m/s) and rate of turn (rad/s) from the two frames
+    measured nearest before ``rec`` (or, ``after``, after it: ``records`` then starts
+    after it) in its cell-index segment, or None."""
+    near = []
+    for r in (records if after else reversed(records[:-1])):
+        if r.centre_app is None or r.segment != rec.segment:
+            continue
+        near.append(r)
+        if len(near) == 2:
+            break
+    if len(near) < 2:
+        return None
+    a, b = near if after else near[::-1]
+    dt = b.t - a.t
+    if not 0 < dt <= max_gap_s or abs(rec.t - (a.t if after else b.t)) > max_gap_s:
+        return None
+    turn = np.angle(np.exp(1j * (b.phi - a.phi)))
+    return (b.centre_app - a.centre_app) / dt, float(turn / dt)
+
+
+def _settle_shutter(records, layout) -> None:
+    """Move the markers of the frames measured before the rock's rate was known (a
+    segment's first two) to one instant with the rate of the frames after them."""
+    for i, rec in enumerate(records):
+        if rec.shutter_pending is None:
+            continue
+        ice, dt = rec.shutter_pending
+        rec.shutter_pending = None
+        rate = _rock_rate(records[i + 1:], rec, after=True)
+        if rate is not None:
+            ice = to_one_instant(ice, dt, rate[0], rate[1], rec.centre_app)
+            rec.centre_app, rec.phi, rec.scale, _ = similarity_fit(layout, ice)
+
+
 def _row_time(rig: Rig, info, fields: bool):
     """The rolling shutter's per-measurement time offset for :func:`track_frames`, or
     None without ``[camera].rolling_shutter_ms``."""
     if not rig.rolling_shutter_ms:
         return None
-    from .shutter import row_time_offset
+    from .shutter import row_time_offsets
 
     readout_s = 1e-3 * rig.rolling_shutter_ms
     # (OpenCV decodes turned by the rotation tag, PyAV - also for fields - does not)
     rotated = info.decoder != "pyav" and not fields
-    return lambda pts_px, shape: row_time_offset(pts_px, shape, readout_s,
-                                                 info.rotation_deg, rotated)
+    return lambda pts_px, shape: row_time_offsets(pts_px, shape, readout_s,
+                                                  info.rotation_deg, rotated)
 
 
 def _calibrate(image, rig, mask):
@@ -321,8 +360,10 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         if not found:
             continue
         rec.markers_px = mf.xy_px
+        offsets = None
         if row_time is not None:
-            rec.t = fr.t + row_time(mf.xy_px, img.shape)
+            offsets = row_time(mf.xy_px, img.shape)
+            rec.t = fr.t + float(np.mean(offsets))
         if not pose.ok:
             rec.status = f"grid: {pose.message}"
             continue
@@ -338,6 +379,13 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         rec.segment = pose.segment
         markers_ice = (markers_ice + [(k, ice)])[-2:]
         c, phi, s, _ = similarity_fit(L, ice)
+        if offsets is not None:
+            rate = _rock_rate(records, rec)
+            if rate is not None:  # each marker seen at its own row's time: one instant
+                ice = to_one_instant(ice, offsets - offsets.mean(), rate[0], rate[1], c)
+                c, phi, s, _ = similarity_fit(L, ice)
+            else:
+                rec.shutter_pending = (ice, offsets - offsets.mean())
         mpp = pixel_scale(on_ice[M:])
         rec.centre_app, rec.phi, rec.scale = c, phi, s
         if fr.index % outline_every == 0:  # the scale's second ruler
@@ -352,6 +400,8 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         rec.contrast = float(np.min(mf.contrast))
         if pose.message:
             rec.notes.append(pose.message)
+    if row_time is not None:
+        _settle_shutter(records, L)
     info = {"calib": calib, "calib_msg": calib_msg, "calib_frame": calib_frame,
             "n_markers": len(L)}
     if not strict:

@@ -93,3 +93,54 @@ def test_rolling_shutter_rows_timed_at_the_rock(tmp_path):
     np.testing.assert_allclose(s.t - s.t_frame, expected, atol=readout * 4 / cfg.height,
                                err_msg=what)
     assert series.meta["rolling_shutter_ms"] == pytest.approx(1e3 * readout)
+
+
+def test_rolling_shutter_theta_as_good_as_a_global_shutter(tmp_path):
+    """A pole-mounted phone or action camera with a rolling shutter (readout 8-30 ms),
+    the ice sliding under it and the rock crossing it: with [camera].rolling_shutter_ms
+    the markers, read on different rows, are moved to one instant with the rock's rate
+    before its angle is taken, so theta's frame-to-frame errors over the first 1.5 s
+    (where the rock is fast and the camera has not caught up: the RS shear of the
+    marker pair, up to ~1 deg, is largest there) are as small as under a global shutter:
+    within 0.1 deg RMS plus 3 sigma of the two RMS's sampling scatter.  Measured about
+    the shot's median error, since theta's origin (fitted to the first 0.8 s) differs
+    between two renders by its own noise.  Whole-shot RMS before -> after: 0.55 -> 0.12
+    and 0.73 -> 0.16 deg on the camera bench's action clips, 1.12 -> 0.56 deg on a 29 ms
+    phone (0.70 with a global shutter)."""
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    st = draw_setup(rng, str(rng.choice(["phone", "action"])), 0.5)
+    plain = RenderConfig()
+    readout = rng.uniform(0.008, min(0.030, 0.9 / st.config.fps))
+    rms, frac, n = {}, {}, {}
+    for r in (0.0, readout):
+        cfg = dataclasses.replace(
+            st.config, camera=dataclasses.replace(st.config.camera, motion="pole"),
+            sensor=dataclasses.replace(st.config.sensor, readout_s=r, frame_jitter_s=0.0,
+                                       drop_rate=0.0),
+            glare=plain.glare, shadow=plain.shadow, occlusion=False)
+        video = tmp_path / f"rs{r:.4f}.mp4"
+        try:
+            truth = render_video(st.shot, default_rig(), video, tmp_path / "truth.csv", cfg,
+                                 seed=st.seed)
+        except ParameterError as exc:  # (a lens folding over in this view: not a camera)
+            pytest.skip(f"seed {seed}: {exc}")
+        rig = dataclasses.replace(load_rig(video.with_suffix(".rig.toml")),
+                                  rolling_shutter_ms=1e3 * r if r else None)
+        try:
+            series = track_video(video, rig)
+        except TrackingError as exc:
+            if r == 0.0:  # (not this test's subject: the set-up itself)
+                pytest.skip(f"seed {seed}: global-shutter render refused: {exc}")
+            raise
+        _, _, dth, ok = _errors(series, truth)
+        if r == 0.0 and ok.mean() < 0.9:  # (not this test's subject: the set-up itself)
+            pytest.skip(f"seed {seed}: global-shutter render {ok.mean():.0%} measured")
+        early = series.data.t.to_numpy()[ok] < 1.5
+        rms[r] = float(np.degrees(np.sqrt(np.mean((dth - np.median(dth))[early] ** 2))))
+        frac[r], n[r] = float(ok.mean()), int(early.sum())
+    what = (f"seed {seed}: readout {1e3 * readout:.1f} ms, {st.summary}, early theta RMS "
+            f"{rms}, measured {frac}")
+    # an RMS of n errors scatters by RMS / sqrt(2 n): 3 sigma of the two's difference
+    slack = 3 * np.sqrt(sum(rms[r] ** 2 / (2 * n[r]) for r in rms))
+    assert rms[readout] <= rms[0.0] + 0.1 + slack, (what, slack)
