@@ -186,6 +186,14 @@ def verify_video(tmp, n_frames: int, path) -> None:
         if ok and n_frames > 0:
             cap.set(cv2.CAP_PROP_POS_FRAMES, n_frames - 1)
             ok = cap.read()[0]
+            if not ok:
+                # OpenCV seeks by time at the nominal rate, which misses the last frame
+                # of a variable-frame-rate file: decode through it instead
+                cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
+                n_read = 0
+                while n_read <= n_frames and cap.grab():
+                    n_read += 1
+                got, ok = n_read, n_read == n_frames
     finally:
         cap.release()
     if not ok:
