@@ -545,10 +545,12 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
 #: Degree of the polynomial (in normalised image coordinates) fitted to the thread
 #: points' misfit of a frame's lattice (:func:`misfit_field`): what a homography cannot
 #: follow - a rolling shutter's row-by-row shift while the camera shakes, the lens
-#: model's misfit - is smooth over the image.  On rendered hand-held action clips
-#: (k1 -0.33, 13 ms readout) the field at the rock predicted the lattice's error there
-#: with correlation 0.87 along the travel at degree 2-4 (3 best).
-MISFIT_DEGREE = 3
+#: model's misfit - is smooth over the image.  On rendered action clips the field at
+#: the rock predicted the lattice's error there along the travel with correlation
+#: 0.87 (hand-held, k1 -0.33, 13 ms readout) and 0.87 (fisheye on a pole) at degree 2
+#: or 3; on a low-bitrate fisheye clip 0.69 at degree 2 and 0.30 at degree 3 (a cubic
+#: flung out to 10-18 mm across the rock's hidden disc in a few frames).
+MISFIT_DEGREE = 2
 
 
 def _poly(q, degree: int) -> np.ndarray:

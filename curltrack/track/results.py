@@ -64,24 +64,30 @@ def field_offset(t, q, field, ok) -> np.ndarray:
 
 
 def misfit_gain(misfit, sigma) -> tuple[np.ndarray, np.ndarray]:
-    """How much of the lattice's local misfit at the rock to take off, and the 1 sigma
-    (per coordinate) of what is left.
+    """How much of the lattice's local misfit at the rock to take off, per frame and
+    axis, and the 1 sigma (per coordinate) of what is left.
 
     ``misfit`` (N, 2) is each measured frame's misfit at the rock (m, lattice x, y: the
     smooth field of the threads' misfit around the rock, :func:`curltrack.calib.lattice.
     misfit_field`), ``sigma`` (N, 2) its 1 sigma from the threads' scatter.  Per axis,
-    the shot's mean square misfit is signal plus noise: the gain is
-    signal^2 / (signal^2 + noise^2) (0 when the field is no larger than its noise, as on
-    a narrow lens's clean footage, 1 when it stands far above it), and the misfit's
-    posterior variance gain x sigma^2 is what remains uncertain (empirical Bayes).
-    Returns (gain (2,), sigma (N,) per coordinate, m).
+    the shot's mean square misfit is signal plus noise (frames whose field is > 3x the
+    median sigma unsure are left out of that sum): the signal variance
+    ``s2 = mean(misfit^2 - sigma^2)`` (>= 0), each frame's gain
+    ``s2 / (s2 + sigma^2)`` (0 when the field is no larger than its noise, as on a
+    narrow lens's clean footage; near 1 where it stands far above it) and the misfit's
+    posterior variance gain x sigma^2 what remains uncertain (empirical Bayes).
+    Returns (gain (N, 2), sigma (N,) per coordinate, m).
     """
     m, s = np.asarray(misfit, float), np.asarray(sigma, float)
     if len(m) == 0:
-        return np.zeros(2), np.zeros(0)
-    ms, noise = np.mean(m * m, axis=0), np.mean(s * s, axis=0)
-    gain = np.where(ms > 0, np.clip(1.0 - noise / np.where(ms > 0, ms, 1.0), 0.0, 1.0), 0.0)
-    return gain, np.sqrt(np.mean(gain * s * s, axis=1))
+        return np.zeros((0, 2)), np.zeros(0)
+    s2 = np.zeros(2)
+    for j in range(2):
+        use = s[:, j] <= 3.0 * np.median(s[:, j])
+        s2[j] = max(float(np.mean(m[use, j] ** 2 - s[use, j] ** 2)), 0.0)
+    var = s * s
+    gain = np.divide(s2, s2 + var, out=np.zeros_like(var), where=(s2 + var) > 0)
+    return gain, np.sqrt(np.mean(gain * var, axis=1))
 
 
 def frame_ranges(frames) -> str:

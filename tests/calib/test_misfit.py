@@ -58,4 +58,4 @@ def test_gain_takes_off_a_clear_misfit_and_leaves_noise_alone():
     signal = 5 * sd * np.sin(np.linspace(0, 6, n))[:, None] * [1, -1] + noise_only
     gain, s = misfit_gain(signal, sigma)
     assert np.all(gain > 0.9), f"seed {seed}: gain {gain} on a misfit 5x its noise"
-    assert misfit_gain(np.zeros((0, 2)), np.zeros((0, 2)))[0].shape == (2,)
+    assert misfit_gain(np.zeros((0, 2)), np.zeros((0, 2)))[0].shape == (0, 2)
