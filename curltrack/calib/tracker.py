@@ -37,7 +37,7 @@ import numpy as np
 
 from ..errors import TrackingError
 from .grid import Calibration, PlaneMap, cells_from_metric, colour_phase, metric_from_cells
-from .lattice import fit_points, periods_px
+from .lattice import fit_points, misfit_field, periods_px
 from .profiles import sample_threads
 from .lens import apply_h
 
@@ -118,6 +118,10 @@ class GridPose(PlaneMap):
         Continuity segment of the cell index: poses of one segment share it; a new
         segment starts where the index was carried over a gap or fixed by the thread
         colours alone (its offset from the others in whole cells is unknown here).
+    misfit : tuple or None
+        The smooth part of the threads' misfit of ``H`` over the image
+        (:func:`.lattice.misfit_field`, cells; read with :func:`.lattice.misfit_at` at
+        normalised undistorted points), None when too few threads were measured.
     """
 
     index: int
@@ -133,6 +137,7 @@ class GridPose(PlaneMap):
     jump_cells: tuple = (0.0, 0.0)
     segment: int = 0
     notes: list = field(default_factory=list)
+    misfit: tuple | None = None
 
 
 class GridTracker:
@@ -327,6 +332,8 @@ class GridTracker:
         typical = float(np.median(self._rms_px)) if len(self._rms_px) >= 5 else None
         if typical is not None and (why := poor_fit(info["rms_px"], typical, st)):
             return failed(why)
+        # (before any whole-cell shift: the points' indices are this fit's)
+        misfit = misfit_field(obs.q, obs.w, obs.fam, obs.idx, Hc, f)
         jump = _origin(Hc) - _origin(Hc_pred)
         # The colours are read when the index could have slipped (a coarse snap, a large
         # correction) and every COLOUR_CHECK_EVERY frames as a confirmation.
@@ -341,7 +348,8 @@ class GridTracker:
         pose = GridPose(index, True, note, H, K, dist, spacing_px=float(np.sqrt(pa * pb)),
                         residual_px=info["rms_px"],
                         n_threads=int(info["lines_a"] + info["lines_b"]),
-                        sigma_px=info["sigma_px"], jump_cells=(float(jump[0]), float(jump[1])))
+                        sigma_px=info["sigma_px"], jump_cells=(float(jump[0]), float(jump[1])),
+                        misfit=misfit)
         if ambiguous:
             pose.ok = False
             pose.message = "cell index uncertain: " + note

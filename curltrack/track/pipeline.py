@@ -66,6 +66,10 @@ class FrameRecord:
     sigma_m: float = np.nan  # 1 sigma of one marker on the ice (m)
     grid_sigma_m: float = np.nan  # 1 sigma of the homography at the image centre (m)
     grid_residual_m: float = np.nan  # thread points' RMS miss of the fitted lattice (m)
+    # the lattice's local misfit at the rock: how far it moves the apparent centre (m,
+    # lattice x, y) and its 1 sigma (m, x, y); applied in build_series
+    misfit_m: tuple = (0.0, 0.0)
+    misfit_sigma_m: tuple = (0.0, 0.0)
     m_per_px: float = np.nan  # ice metres per image px at the rock
     spacing_px: float = np.nan
     contrast: float = np.nan
@@ -289,6 +293,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     """
     from ..calib import GridTracker
     from ..calib.grid import pixel_scale, pixel_steps
+    from ..calib.lattice import misfit_at
     from ..calib.lens import apply_h, undistort
 
     st = rig.tracking
@@ -386,6 +391,14 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
                 c, phi, s, _ = similarity_fit(L, ice)
             else:
                 rec.shutter_pending = (ice, offsets - offsets.mean())
+        if pose.misfit is not None:
+            # what the frame's homography misses near the rock (a rolling shutter's
+            # shear under a shaking camera, the lens model's misfit), from the threads
+            # around it: the centre with it taken off each marker
+            spacing = np.array([calib.spacing_x_m, calib.spacing_y_m])
+            d, sd = misfit_at(pose.misfit, (q[:M] - calib.K[:2, 2]) / calib.K[0, 0])
+            rec.misfit_m = tuple(float(v) for v in similarity_fit(L, ice - d * spacing)[0] - c)
+            rec.misfit_sigma_m = tuple(float(v) for v in sd.mean(axis=0) * spacing)
         mpp = pixel_scale(on_ice[M:])
         rec.centre_app, rec.phi, rec.scale = c, phi, s
         if fr.index % outline_every == 0:  # the scale's second ruler

@@ -63,6 +63,33 @@ def field_offset(t, q, field, ok) -> np.ndarray:
     return out
 
 
+def misfit_gain(misfit, sigma) -> tuple[np.ndarray, np.ndarray]:
+    """How much of the lattice's local misfit at the rock to take off, per frame and
+    axis, and the 1 sigma (per coordinate) of what is left.
+
+    ``misfit`` (N, 2) is each measured frame's misfit at the rock (m, lattice x, y: the
+    smooth field of the threads' misfit around the rock, :func:`curltrack.calib.lattice.
+    misfit_field`), ``sigma`` (N, 2) its 1 sigma from the threads' scatter.  Per axis,
+    the shot's mean square misfit is signal plus noise (frames whose field is > 3x the
+    median sigma unsure are left out of that sum): the signal variance
+    ``s2 = mean(misfit^2 - sigma^2)`` (>= 0), each frame's gain
+    ``s2 / (s2 + sigma^2)`` (0 when the field is no larger than its noise, as on a
+    narrow lens's clean footage; near 1 where it stands far above it) and the misfit's
+    posterior variance gain x sigma^2 what remains uncertain (empirical Bayes).
+    Returns (gain (N, 2), sigma (N,) per coordinate, m).
+    """
+    m, s = np.asarray(misfit, float), np.asarray(sigma, float)
+    if len(m) == 0:
+        return np.zeros((0, 2)), np.zeros(0)
+    s2 = np.zeros(2)
+    for j in range(2):
+        use = s[:, j] <= 3.0 * np.median(s[:, j])
+        s2[j] = max(float(np.mean(m[use, j] ** 2 - s[use, j] ** 2)), 0.0)
+    var = s * s
+    gain = np.divide(s2, s2 + var, out=np.zeros_like(var), where=(s2 + var) > 0)
+    return gain, np.sqrt(np.mean(gain * var, axis=1))
+
+
 def frame_ranges(frames) -> str:
     """[1, 2, 3, 7] -> "1-3, 7"."""
     frames = sorted({int(f) for f in frames})
@@ -255,6 +282,13 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     centre = np.full((n, 2), np.nan)
     phi = np.full(n, np.nan)
     app = np.array([records[i].centre_app for i in idx]).reshape(-1, 2)
+    # the lattice's local misfit at the rock (track_frames), taken off as far as the shot
+    # shows it above its noise; the rest of its variance goes into sigma
+    gain, sig_l = misfit_gain(np.array([records[i].misfit_m for i in idx]).reshape(-1, 2),
+                              np.array([records[i].misfit_sigma_m for i in idx]).reshape(-1, 2))
+    app = app + gain * np.array([records[i].misfit_m for i in idx]).reshape(-1, 2)
+    sig_misfit = np.zeros(n)
+    sig_misfit[idx] = sig_l
     nd = np.where(np.isfinite(nadir[idx]).all(axis=1, keepdims=True), nadir[idx], app)
     centre[idx] = correct_parallax(app, nd, k[:, None])
     # the video-wide height's uncertainty moves a rock in proportion to its distance
@@ -278,8 +312,9 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sig_g = np.array([r.grid_sigma_m for r in records])
     sig_r = np.array([r.grid_residual_m for r in records])
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
-    sigma_xy = np.hypot(est.k * np.hypot(SIGMA_STAT_SCALE * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
-                                         SIGMA_MISFIT_SCALE * sig_r), sigma_parallax)
+    sigma_xy = np.hypot(est.k * np.sqrt((SIGMA_STAT_SCALE ** 2 * (sig_m ** 2 / M + sig_g ** 2))
+                                        + (SIGMA_MISFIT_SCALE * sig_r) ** 2 + sig_misfit ** 2),
+                        sigma_parallax)
     if shot["origin_sigma_m"] > st.max_origin_sigma_m:
         raise TrackingError(f"the first measured frame is at t = {t[ok][0]:.2f} s and the "
                             "origin (the rock at t = 0) cannot be extrapolated back to it "

@@ -196,8 +196,10 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     theta = np.full(t.shape, np.nan)
     x[idx], y[idx] = disp @ x_hat, disp @ y_hat
     theta[idx] = th - th0
-    origin_sigma = (_origin_sigma(tt, cc, st.max_deceleration_m_s2)
-                    if tt.size and tt[0] > 0 else 0.0)
+    # (late: after half a frame - a rolling shutter times the first frame's row a
+    # fraction of a millisecond after t = 0, which extrapolates nothing)
+    late = tt.size > 1 and tt[0] > 0.5 * float(np.median(np.diff(tt)))
+    origin_sigma = _origin_sigma(tt, cc, st.max_deceleration_m_s2) if late else 0.0
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
             "origin_sigma_m": float(origin_sigma)}

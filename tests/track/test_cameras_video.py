@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
-from curltrack.errors import ParameterError, TrackingError
+from curltrack.errors import CurltrackError, ParameterError, TrackingError
 from curltrack.render import RenderConfig, render_video
 from curltrack.render.sensor import SensorConfig
 from curltrack.render.sweep import _lens_ok, draw_setup
@@ -144,3 +144,49 @@ def test_rolling_shutter_theta_as_good_as_a_global_shutter(tmp_path):
     # an RMS of n errors scatters by RMS / sqrt(2 n): 3 sigma of the two's difference
     slack = 3 * np.sqrt(sum(rms[r] ** 2 / (2 * n[r]) for r in rms))
     assert rms[readout] <= rms[0.0] + 0.1 + slack, (what, slack)
+
+
+# Only the trust side is held: sigma too large (conservative) is seen on some draws
+# (seed 1367895436: k1 -0.295, k2 0.059, readout 11.6 ms, glare and a broom: std
+# e/sigma 0.40 at 0.69 mm RMS), not yet looked into.
+def test_wide_angle_action_clip_sigma_honest(tmp_path):
+    """A hand-held action camera as drawn for the sweep (rolling shutter, shake, codec)
+    with a strong wide-angle lens (k1 -0.35..-0.25, k2): sigma_xy is honest - the std of
+    error/sigma (x and y pooled) at most 1.4 (issue #19.6: 1.8-2.3 before the nadir
+    was decomposed about the principal point and the lattice's local misfit taken off
+    the markers; the aim is 0.8-1.25, the band allows for one clip's few independent
+    stretches of a smooth error) - and positions stay at the mm."""
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    video = tmp_path / "action.mp4"
+    for _ in range(10):  # a set-up whose lens does not fold over inside the image
+        st = draw_setup(rng, "action", 0.5)
+        cam = dataclasses.replace(st.config.camera, lens="radial", motion="handheld",
+                                  k1=rng.uniform(-0.35, -0.25), k2=rng.uniform(0.02, 0.08))
+        if not _lens_ok(cam, st.config.width, st.config.height):
+            continue
+        cfg = dataclasses.replace(st.config, camera=cam)
+        try:
+            truth = render_video(st.shot, default_rig(), video, tmp_path / "truth.csv", cfg,
+                                 seed=st.seed)
+            break
+        except CurltrackError:  # (folds over once tilted; the writer refuses a file)
+            continue
+    else:
+        pytest.fail(f"seed {seed}: no renderable wide-angle set-up in 10 draws")
+    readout_ms = 1e3 * float(truth.meta.get("readout_s") or 0.0)
+    what = (f"seed {seed}: k1 {cam.k1:.3f}, k2 {cam.k2:.3f}, readout {readout_ms:.1f} ms, "
+            f"{st.summary}")
+    rig = dataclasses.replace(load_rig(video.with_suffix(".rig.toml")),
+                              rolling_shutter_ms=readout_ms or None)
+    try:
+        series = track_video(video, rig)
+    except TrackingError as exc:  # (a lens refused by name is honest too)
+        assert "lens" in str(exc), (what, str(exc))
+        return
+    e, sig, _, ok = _errors(series, truth)
+    assert ok.mean() >= 0.9, (what, ok.mean())
+    rms = float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))
+    assert rms <= 1.5e-3, (what, rms)
+    z = float(np.std(np.r_[e[:, 0] / sig, e[:, 1] / sig]))
+    assert z <= 1.4, f"{what}: std of position error/sigma {z:.2f} (pos RMS {1e3 * rms:.2f} mm)"

@@ -1,0 +1,61 @@
+"""The smooth field of the threads' misfit of a frame's lattice, and how much of it the
+tracker takes off (issue #19.6: a rolling shutter's shear and the lens model's misfit
+moved the rock by +-1 mm where the homography could not follow)."""
+
+import numpy as np
+
+from curltrack.calib.lattice import misfit_at, misfit_field
+from curltrack.track.results import misfit_gain
+
+
+def _threads(rng, warp, noise_px, f=700.0, period_px=60.0):
+    """Thread points of a lattice (cells = q * f / period) over a 960x540 view, each
+    moved across its thread by ``warp(q)`` px (family 0: x, 1: y) plus noise."""
+    q, fam, idx = [], [], []
+    for fm in (0, 1):
+        for line in range(-8, 9):
+            along = rng.uniform(-0.68, 0.68, 40) if fm == 0 else rng.uniform(-0.38, 0.38, 40)
+            across = line * period_px / f
+            pts = (np.column_stack([np.full(40, across), along]) if fm == 0
+                   else np.column_stack([along, np.full(40, across)]))
+            pts = pts[(np.abs(pts[:, 0]) < 0.68) & (np.abs(pts[:, 1]) < 0.38)]
+            q.append(pts)
+            fam.append(np.full(len(pts), fm))
+            idx.append(np.full(len(pts), line))
+    q, fam, idx = np.vstack(q), np.concatenate(fam), np.concatenate(idx)
+    shift = warp(q)[np.arange(len(q)), fam] + rng.normal(0, noise_px, len(q))
+    # the lattice's coordinates of the moved points: off their thread by shift px
+    move = np.zeros_like(q)
+    move[np.arange(len(q)), fam] = shift / f
+    Hc = np.diag([f / period_px, f / period_px, 1.0])
+    return q + move, np.ones(len(q)), fam, idx, Hc, f
+
+
+def test_field_recovers_a_smooth_warp_and_its_noise():
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(-1.5, 1.5, 2)  # px: a quadratic warp a homography cannot follow
+    warp = lambda q: np.column_stack([a[0] * (q[:, 1] / 0.38) ** 2, a[1] * q[:, 0] * q[:, 1] / 0.26])
+    q, w, fam, idx, Hc, f = _threads(rng, warp, 0.2)
+    field = misfit_field(q, w, fam, idx, Hc, f)
+    at = rng.uniform(-0.2, 0.2, (5, 2))
+    val, sd = misfit_at(field, at)
+    expected = warp(at) / 60.0  # cells
+    assert np.all(np.abs(val - expected) < 4 * sd + 1e-4), f"seed {seed}: {val - expected}, sd {sd}"
+    assert np.all(sd < 0.1 / 60.0), f"seed {seed}: sd {sd * 60} px"
+
+
+def test_gain_takes_off_a_clear_misfit_and_leaves_noise_alone():
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    n, sd = 300, 1e-4
+    sigma = np.full((n, 2), sd)
+    noise_only = rng.normal(0, sd, (n, 2))
+    gain, s = misfit_gain(noise_only, sigma)
+    # a mean square of pure noise is sd^2 within ~3 x sqrt(2 / n) of it
+    assert np.all(gain < 0.3), f"seed {seed}: gain {gain} on noise alone"
+    assert np.all(s <= sd * np.sqrt(0.3) + 1e-12)
+    signal = 5 * sd * np.sin(np.linspace(0, 6, n))[:, None] * [1, -1] + noise_only
+    gain, s = misfit_gain(signal, sigma)
+    assert np.all(gain > 0.9), f"seed {seed}: gain {gain} on a misfit 5x its noise"
+    assert misfit_gain(np.zeros((0, 2)), np.zeros((0, 2)))[0].shape == (0, 2)
