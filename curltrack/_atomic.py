@@ -131,16 +131,21 @@ def atomic_path(path, suffix: str | None = None):
     path = Path(path)
     check_writable(path)
     _install_sigterm()
+    tmp = None
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        clean_stale(path)
-        fd, tmp = tempfile.mkstemp(prefix=f"{_temp_prefix(path)}{os.getpid()}.",
-                                   suffix=suffix or path.suffix, dir=path.parent)
-    except OSError as exc:
-        raise CurltrackError(f"cannot write here ({exc.strerror})", path=path) from None
-    os.close(fd)
-    _LIVE.add(tmp)
-    try:
+        # (a SIGTERM or Ctrl-C between the file's creation and its name being known
+        # would leave it behind: they wait until then)
+        with _signals_deferred():
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                clean_stale(path)
+                fd, tmp = tempfile.mkstemp(prefix=f"{_temp_prefix(path)}{os.getpid()}.",
+                                           suffix=suffix or path.suffix, dir=path.parent)
+            except OSError as exc:
+                raise CurltrackError(f"cannot write here ({exc.strerror})",
+                                     path=path) from None
+            os.close(fd)
+            _LIVE.add(tmp)
         try:
             yield Path(tmp)
         except OSError as exc:
@@ -152,11 +157,27 @@ def atomic_path(path, suffix: str | None = None):
         except OSError as exc:  # e.g. a directory made under the name while we wrote
             raise CurltrackError(f"cannot write ({exc.strerror})", path=path) from None
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+        if tmp is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
         raise
     finally:
         _LIVE.discard(tmp)
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """Hold SIGTERM and SIGINT back (delivered on leaving) where the platform can."""
+    held = {signal.SIGTERM, signal.SIGINT}
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    except (AttributeError, OSError, ValueError):  # (no pthread_sigmask here)
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def verify_video(tmp, n_frames: int, path) -> None:

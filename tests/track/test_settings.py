@@ -113,4 +113,7 @@ def test_the_grid_tracker_reads_its_thresholds_from_the_rig(tmp_path):
         records, _ = track_frames(iter_frames(video), rig)
         poor[name] = sum("grid fit poor" in r.status for r in records)
     n = len(records)
-    assert poor["default"] <= 0.05 * n and poor["strict"] >= 0.3 * n, (seed, poor, n)
+    # (with the factor 1 a frame is refused when its fit is worse than the running
+    # median's: about half of them, correlated frame to frame - 30 % was too close to
+    # that, seed 1287064168 refused 20 of 70 - a fifth is still far from the default's)
+    assert poor["default"] <= 0.05 * n and poor["strict"] >= 0.2 * n, (seed, poor, n)
