@@ -276,8 +276,9 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     """Run the per-frame loop over an iterable of :class:`curltrack.video.Frame`.
 
     ``row_time(markers_px, image_shape)``, when given (a rolling shutter,
-    :func:`curltrack.track.shutter.row_time_offset`), is added to each measured frame's
-    time: the instant at which the rock's rows were exposed.
+    :func:`curltrack.track.shutter.row_time_offsets`), gives each marker's exposure time
+    relative to the frame's: their mean is added to the frame's time (the instant at
+    which the rock's rows were exposed), and the markers are moved to that instant.
 
     The rock's outline (the scale check's second ruler) is measured on every
     ``outline_every``-th frame.
@@ -365,10 +366,11 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         if not found:
             continue
         rec.markers_px = mf.xy_px
-        offsets = None
+        seen_at = None  # each marker's exposure time relative to the row's t (s)
         if row_time is not None:
             offsets = row_time(mf.xy_px, img.shape)
             rec.t = fr.t + float(np.mean(offsets))
+            seen_at = offsets - offsets.mean()
         if not pose.ok:
             rec.status = f"grid: {pose.message}"
             continue
@@ -384,13 +386,13 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         rec.segment = pose.segment
         markers_ice = (markers_ice + [(k, ice)])[-2:]
         c, phi, s, _ = similarity_fit(L, ice)
-        if offsets is not None:
+        if seen_at is not None:
             rate = _rock_rate(records, rec)
             if rate is not None:  # each marker seen at its own row's time: one instant
-                ice = to_one_instant(ice, offsets - offsets.mean(), rate[0], rate[1], c)
+                ice = to_one_instant(ice, seen_at, rate[0], rate[1], c)
                 c, phi, s, _ = similarity_fit(L, ice)
             else:
-                rec.shutter_pending = (ice, offsets - offsets.mean())
+                rec.shutter_pending = (ice, seen_at)
         if pose.misfit is not None:
             # what the frame's homography misses near the rock (a rolling shutter's
             # shear under a shaking camera, the lens model's misfit), from the threads
@@ -532,17 +534,14 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
 
     report = progress if callable(progress) else None
     progress = bool(progress) and report is None
-    try:  # (the frames a user asked to see matter most when the video is refused)
-        try:
-            with threadpool_limits(limits=max(n_threads, 1), user_api="blas"), \
-                    progress_bar("tracking", total, enabled=progress) as advance:
-                records, loop_info = track_frames(
-                    frames, rig, path=video_path,
-                    progress=_counting(advance, report, total) if progress or report else None,
-                    outline_every=max(2, total // OUTLINE_FRAMES),
-                    row_time=_row_time(rig, info, fields))
-        finally:
-            cv2.setNumThreads(threads_before)
+    try:
+        with threadpool_limits(limits=max(n_threads, 1), user_api="blas"), \
+                progress_bar("tracking", total, enabled=progress) as advance:
+            records, loop_info = track_frames(
+                frames, rig, path=video_path,
+                progress=_counting(advance, report, total) if progress or report else None,
+                outline_every=max(2, total // OUTLINE_FRAMES),
+                row_time=_row_time(rig, info, fields))
         blank = _blank_lead(records) if start_frame is None else 0
         if blank:  # black / empty frames before the scene: t = 0 at the first real frame
             records, start = records[blank:], records[blank].frame
@@ -565,10 +564,12 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
 
             corr_warnings = apply_corrections(records, corr, loop_info["calib"], rig)
         series = build_series(records, rig, info, start, loop_info, path=video_path)
-    except CurltrackError:
+    except CurltrackError:  # (the asked frames matter most when the video is refused)
         if debug_dir is not None and len(debug_frames):
             _write_verdict_frames(video_path, debug_dir, debug_frames, rig)
         raise
+    finally:
+        cv2.setNumThreads(threads_before)
     if corr is not None:
         series.meta["corrections"] = {
             "file": corr["file"], "click_sigma_px": corr["click_sigma_px"],

@@ -59,14 +59,6 @@ def row_time_offsets(pts_px, shape, readout_s: float, rotation_deg: int = 0,
     return readout_s * (frac - 0.5)
 
 
-def row_time_offset(pts_px, shape, readout_s: float, rotation_deg: int = 0,
-                    decoded_rotated: bool = True) -> float:
-    """Time (s) at which points were seen together, relative to the frame's time: the
-    mean of their :func:`row_time_offsets`."""
-    return float(np.mean(row_time_offsets(pts_px, shape, readout_s, rotation_deg,
-                                          decoded_rotated)))
-
-
 def to_one_instant(points, dt, velocity, omega: float, centre) -> np.ndarray:
     """Points on the rock, each seen at its own time offset, moved to offset 0.
 

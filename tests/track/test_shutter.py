@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from curltrack.render.encode import EncodingConfig, open_writer
-from curltrack.track.shutter import row_time_offset, sensor_row_fraction
+from curltrack.track.shutter import row_time_offsets, sensor_row_fraction
 from curltrack.video import iter_frames, probe_video
 
 
@@ -34,12 +34,12 @@ def test_sensor_row_through_the_decoder(tmp_path, rotation):
     assert frac[0] == pytest.approx((v + 0.5) / H, abs=0.6 / H), (seed, info.decoder, dot)
 
 
-def test_row_time_offset_spans_the_readout():
+def test_row_time_offsets_span_the_readout():
     shape = (540, 960, 3)
     top, mid, bottom = ([[100.0, -0.5]], [[500.0, 269.5]], [[3.0, 539.5]])
-    assert row_time_offset(top, shape, 0.02) == pytest.approx(-0.01)
-    assert row_time_offset(mid, shape, 0.02) == pytest.approx(0.0)
-    assert row_time_offset(bottom, shape, 0.02) == pytest.approx(0.01)
+    assert row_time_offsets(top, shape, 0.02)[0] == pytest.approx(-0.01)
+    assert row_time_offsets(mid, shape, 0.02)[0] == pytest.approx(0.0)
+    assert row_time_offsets(bottom, shape, 0.02)[0] == pytest.approx(0.01)
     with pytest.raises(ValueError):
         sensor_row_fraction(top, shape, 45)
 
