@@ -284,9 +284,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     app = np.array([records[i].centre_app for i in idx]).reshape(-1, 2)
     # the lattice's local misfit at the rock (track_frames), taken off as far as the shot
     # shows it above its noise; the rest of its variance goes into sigma
-    gain, sig_l = misfit_gain(np.array([records[i].misfit_m for i in idx]).reshape(-1, 2),
+    misfit = np.array([records[i].misfit_m for i in idx]).reshape(-1, 2)
+    gain, sig_l = misfit_gain(misfit,
                               np.array([records[i].misfit_sigma_m for i in idx]).reshape(-1, 2))
-    app = app + gain * np.array([records[i].misfit_m for i in idx]).reshape(-1, 2)
+    app = app + gain * misfit
     sig_misfit = np.zeros(n)
     sig_misfit[idx] = sig_l
     nd = np.where(np.isfinite(nadir[idx]).all(axis=1, keepdims=True), nadir[idx], app)

@@ -198,7 +198,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     theta[idx] = th - th0
     # (late: after half a frame - a rolling shutter times the first frame's row a
     # fraction of a millisecond after t = 0, which extrapolates nothing)
-    late = tt.size > 1 and tt[0] > 0.5 * float(np.median(np.diff(tt)))
+    late = tt.size > 0 and tt[0] > 0 and (
+        tt.size < 2 or tt[0] > 0.5 * float(np.median(np.diff(tt))))
     origin_sigma = _origin_sigma(tt, cc, st.max_deceleration_m_s2) if late else 0.0
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
