@@ -276,6 +276,99 @@ def _check_period(xs, w, Hc, K, dist, family: int):
     return mid > 0.35 * on
 
 
+#: A fitted thread "carries no thread" when its background-subtracted response per px of
+#: length is below this fraction of the typical fitted thread's (:func:`_spurious_threads`).
+EMPTY_THREAD_RATIO = 0.25
+#: The steepest view accepted (deg from straight down), read from the shape of the
+#: lattice's cells at the principal point (:func:`lattice_tilt_deg`).  Filming asks for
+#: a few degrees; cells that contradict the rig's shape beyond this are not the threads
+#: (a family fitted at half its period looks like a view 60 deg from straight down).
+MAX_TILT_DEG = 30.0
+
+
+def lattice_tilt_deg(Hc, spacings) -> float:
+    """Camera tilt (deg from straight down) implied by the shape of the lattice's cells
+    at the principal point: a pinhole tilted by t sees the plane stretched by 1/cos t
+    along the tilt there, whatever the lens and the focal length.
+
+    Parameters
+    ----------
+    Hc : (3, 3) ndarray
+        Homography normalised undistorted px -> cells (families a, b).
+    spacings : (float, float)
+        Thread spacings (m) of families a and b.
+    """
+    Hc = np.asarray(Hc, float) / Hc[2, 2]
+    J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])  # d(a, b)/dq at the centre
+    s = np.linalg.svd(np.diag(spacings) @ J, compute_uv=False)
+    return float(np.degrees(np.arccos(np.clip(s[1] / s[0], 0.0, 1.0))))
+
+
+def _family_spacings(Hc, f, rig):
+    """(spacing of family a, of family b) (m) as :func:`_to_metric` assigns them, and
+    whether family a is the lattice's x."""
+    pa, pb = periods_px(Hc, f)
+    J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])
+    sx, sy = rig.spacing_x_m, rig.spacing_y_m
+    if abs(sx - sy) / max(sx, sy) > 0.08:
+        # Spacings differ: the family with the larger px period has the larger spacing.
+        x_is_a = (pa > pb) == (sx > sy)
+    else:
+        # Equal spacings: y is the family whose gradient is closest to the image vertical.
+        x_is_a = abs(J[1, 1]) / np.linalg.norm(J[1]) > abs(J[0, 1]) / np.linalg.norm(J[0])
+    return ((sx, sy) if x_is_a else (sy, sx)), x_is_a
+
+
+def _spurious_threads(xs, w, Hc, K, dist, family: int, width: int, height: int):
+    """``(m, r)`` when only the fitted threads of a family with index ``r`` mod ``m``
+    (m = 2, 3) carry thread response - the fit took a harmonic of the period, threads
+    every m-th line - else None.
+
+    Each fitted thread's response per px of its length in view (an image-wide pixel
+    grid mapped the same way gives the length), less the response between the threads,
+    is compared with the typical thread's; crossings with the other family are left out.
+    """
+    f, c = K[0, 0], K[:2, 2]
+    p_other = periods_px(Hc, f)[1 - family]
+    step = max(1, int(round(np.hypot(width, height) / 500)))
+    gy, gx = np.mgrid[step / 2:height:step, step / 2:width:step]
+    grid = np.column_stack([gx.ravel(), gy.ravel()])
+
+    def per_thread(pts, weights):
+        ab = apply_h(Hc, (undistort(pts, K, dist) - c) / f)
+        a, o = ab[:, family], ab[:, 1 - family]
+        ok = np.isfinite(a) & (np.abs(o - np.round(o)) * p_other > 4.0)
+        idx, frac = np.round(a[ok]), np.abs(a[ok] - np.round(a[ok]))
+        on, between = frac < 0.08, (frac > 0.25) & (frac < 0.45)
+        return idx, on, between, weights[ok]
+
+    idx_g, on_g, bw_g, _ = per_thread(grid, np.ones(len(grid)))
+    idx_c, on_c, bw_c, w_c = per_thread(xs, w)
+    if len(idx_g) == 0:
+        return None
+    lo = int(min(idx_g.min(), idx_c.min(initial=idx_g.min())))
+    n = int(max(idx_g.max(), idx_c.max(initial=idx_g.max()))) - lo + 1
+    ig, ic = (idx_g - lo).astype(int), (idx_c - lo).astype(int)
+    len_on = np.bincount(ig[on_g], minlength=n).astype(float)
+    len_bw = np.bincount(ig[bw_g], minlength=n).astype(float)
+    resp_on = np.bincount(ic[on_c], w_c[on_c], minlength=n)
+    resp_bw = np.bincount(ic[bw_c], w_c[bw_c], minlength=n)
+    judged = (len_on >= 0.25 * len_on.max()) & (len_bw > 0)
+    if judged.sum() < 4:
+        return None
+    support = resp_on[judged] / len_on[judged] - resp_bw[judged] / len_bw[judged]
+    index = np.arange(lo, lo + n)[judged]
+    for m in (2, 3):
+        for r in range(m):
+            cls = index % m == r
+            if cls.sum() < 2 or cls.all():
+                continue
+            typical = np.median(support[cls])
+            if typical > 0 and support[~cls].max() < EMPTY_THREAD_RATIO * typical:
+                return m, r
+    return None
+
+
 #: Thread pixels (at most) of the calibration frame: a seeded subsample when there are
 #: more, as in a sharp 1080p frame.  The subsample's own scatter sets how well k2 and the
 #: distortion centre extrapolate into the image corners: 50k of a 960x540 frame's 180k
@@ -365,7 +458,8 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
     # the wide-angle schedule first; the mild one (as before 2026-11-24) where it fails
     for i, schedule in enumerate(LENS_SCHEDULES):
         try:
-            Hc_i, K_i, dist, info, lens_radius = _fit_lens(xs, wt, Hc, K, w, h, *schedule)
+            Hc_i, K_i, dist, info, lens_radius = _fit_lens(xs, wt, Hc, K, w, h, rig,
+                                                           *schedule)
             break
         except TrackingError as exc:
             if i == 0:
@@ -382,13 +476,13 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
     return cal
 
 
-def _fit_lens(xs, wt, Hc, K, w, h, growing, free, free_from):
+def _fit_lens(xs, wt, Hc, K, w, h, rig, growing, free, free_from):
     """Region growing from the spectrum's lattice ``Hc`` with the lens parameters
     ``free`` (from ``free_from`` of the radius on), then the final fit on every pixel
     and the lens check: (Hc, K, dist, info, checked radius), or TrackingError."""
     half_diag = np.hypot(w, h) / 2
-    radii = [v * half_diag for v in growing] + [None]
-    dist = (0.0, 0.0)
+    radii = radii0 = [v * half_diag for v in growing] + [None]
+    dist, K0 = (0.0, 0.0), K
     # The region growing only has to land in the right basin: a fixed subsample of the
     # thread pixels does that at a fraction of the cost; the final fit uses them all.
     sub = np.sort(np.random.default_rng(0).permutation(len(xs))[:COARSE_PIXELS])
@@ -400,6 +494,11 @@ def _fit_lens(xs, wt, Hc, K, w, h, growing, free, free_from):
             if _check_period(xs[sub], wt[sub], Hc, K, dist, fam):
                 Hc[fam] *= 2.0  # the spectrum picked a sub-harmonic: threads every half cell
                 halved = True
+        if not halved:
+            halved, Hc = _drop_spurious_threads(xs[sub], wt[sub], Hc, K, dist, w, h, rig)
+            if halved:  # the lens was bent to the wrong lattice: grow again from none
+                K, dist, radii = K0, (0.0, 0.0), radii0
+                continue
         if not halved:
             break
         radii = [0.5 * half_diag, None]
@@ -416,6 +515,29 @@ def _fit_lens(xs, wt, Hc, K, w, h, growing, free, free_from):
             f"({lens_radius / half_diag:.0%} of the half-diagonal); a lens this wide (a "
             f"fisheye?) is not modelled")
     return Hc, K, dist, info, lens_radius
+
+
+def _drop_spurious_threads(xs, wt, Hc, K, dist, w, h, rig):
+    """(True, corrected Hc) when a family was fitted at a harmonic of its period
+    (:func:`_spurious_threads`) and taking its every m-th line as the threads brings
+    the cells' shape clearly closer to the rig's; else (False, Hc).  A thread colour
+    much weaker than the other also leaves every second line empty: doubling a right
+    period stretches the cells 2:1, and doubling both families' keeps their shape - a
+    lattice whose shape agrees with the rig is left as it is."""
+    f = K[0, 0]
+    new = Hc.copy()
+    for fam in (0, 1):
+        found = _spurious_threads(xs, wt, Hc, K, dist, fam, w, h)
+        if found is not None:
+            m, r = found
+            new[fam] = (Hc[fam] - r * Hc[2]) / m  # line r + m i of the fit -> thread i
+    if np.array_equal(new, Hc):
+        return False, Hc
+    before = lattice_tilt_deg(Hc, _family_spacings(Hc, f, rig)[0])
+    after = lattice_tilt_deg(new, _family_spacings(new, f, rig)[0])
+    if after > before - 2.0:
+        return False, Hc
+    return True, new
 
 
 def checked_lens_radius(xs, wt, Hc, K, dist, width: int, height: int):
@@ -470,16 +592,17 @@ def _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info) -> Calibrat
     """Choose the lattice axes, signs and origin; express the homography in metres."""
     h, w = img.shape[:2]
     f, c = K[0, 0], K[:2, 2]
-    pa, pb = periods_px(Hc, f)
     J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])  # d(a, b)/dq at the centre
     sx, sy = rig.spacing_x_m, rig.spacing_y_m
     notes = []
-    if abs(sx - sy) / max(sx, sy) > 0.08:
-        # Spacings differ: the family with the larger px period has the larger spacing.
-        x_is_a = (pa > pb) == (sx > sy)
-    else:
-        # Equal spacings: y is the family whose gradient is closest to the image vertical.
-        x_is_a = abs(J[1, 1]) / np.linalg.norm(J[1]) > abs(J[0, 1]) / np.linalg.norm(J[0])
+    spacings, x_is_a = _family_spacings(Hc, f, rig)
+    tilt = lattice_tilt_deg(Hc, spacings)
+    if tilt > MAX_TILT_DEG:
+        raise TrackingError(
+            f"no grid found: the lattice fitted has cells of another shape than the rig's "
+            f"({sx:g} x {sy:g} m) - as from a camera {tilt:.0f} deg from straight down "
+            f"(a few degrees expected): probably not the threads' own spacing (a harmonic, "
+            f"with few cells in view?)")
     P = np.eye(3) if x_is_a else np.array([[0.0, 1, 0], [1, 0, 0], [0, 0, 1]])
     Hc = P @ Hc
     J = P[:2, :2] @ J

@@ -252,6 +252,13 @@ def periods_px(Hc, f):
 
 LENS_PARAMS = ("k1", "k2", "cx", "cy")
 STAGE_TOL_PX = 0.1  # a region-growing stage ends once a step moves no pixel this far
+#: A lens parameter is freed in a region-growing stage only once the region's radius
+#: spans this many thread periods (besides ``free_from``'s fraction of the view): the
+#: wide-angle schedule's fractions, validated on action cameras at 960x540 (periods of
+#: 40-60 px), free k1 at 3-4 periods and k2 and the centre at 5-7; on a view only ~4
+#: cells across (480x270, 0.3 m threads from 3 m) the same fractions freed them at 1.3
+#: and 2.2 periods, k2 went to 2.1 and the fit landed on a lattice of half the period.
+LENS_MIN_PERIODS = {"k1": 3.0, "k2": 5.0, "cx": 5.0, "cy": 5.0}
 CENTRE_PRIOR_PX = 30.0  # weak prior: distortion centre within ~30 px of the image centre
 
 
@@ -363,7 +370,8 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
         Centre of the growing region (px); default the principal point.
     radii : sequence of float or None
         Region-growing radii (px); None = all pixels.  Lens parameters are only freed
-        once the region reaches ``free_from`` of the farthest pixel's radius.
+        once the region reaches ``free_from`` of the farthest pixel's radius and
+        :data:`LENS_MIN_PERIODS` thread periods.
     band_px : float or (float, float)
         Half-width (px) of the band around a thread whose pixels belong to it (per family).
     free_from : float or dict
@@ -389,9 +397,10 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
         # (the pixels of this stage's region only: the inner stages are small)
         sel = slice(None) if radius is None else np.flatnonzero(rad <= radius)
         xs_s, w_s, q_s = xs[sel], w[sel], q[sel]
-        stage_free = [j for j in free_idx if radius is None or radius > (
+        period = max(periods_px(Hc, f))
+        stage_free = [j for j in free_idx if radius is None or (radius > (
             free_from.get(LENS_PARAMS[j], 0.5) if isinstance(free_from, dict) else free_from)
-            * rad.max()]
+            * rad.max() and radius >= LENS_MIN_PERIODS[LENS_PARAMS[j]] * period)]
         for it in range(iterations):
             pa, pb = periods_px(Hc, f)
             ab = apply_h(Hc, q_s)

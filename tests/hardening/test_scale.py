@@ -63,6 +63,7 @@ def render_setup(out: Path, motion, height_m, tilt_deg, k1, spacing_m, occlusion
     cfg = RenderConfig(width=size[0], height=size[1], camera=cam, stopped_tail_s=0.4,
                        blur_subframes=3, occlusion=occlusion)
     truth = render_video(sim, rig, out, config=cfg, seed=seed)
+    truth.data.to_csv(out.with_suffix(".truth.csv"), index=False)  # the SHOT.csv frame
     depth = rig.grid_depth_m / ICE_REFRACTIVE_INDEX
     return out, rig, float(np.median(truth.data["camera_height_m"])) - depth
 
@@ -87,6 +88,7 @@ def _check(video, rig, H, label, factors=FACTORS, no_height_factors=NO_HEIGHT_CA
     for h in (None, H):
         msg = refused(video, rig, 1.0, h)
         assert not msg, f"{label}: right rig refused (height {h}): {msg}"
+    assert_matches_truth(video, track_video(video, rig).data, label)
     seen = {}
     for f in factors:
         assert "grid spacing" in refused(video, rig, f, H), f"{label}: x{f} (height) passed"
@@ -96,6 +98,20 @@ def _check(video, rig, H, label, factors=FACTORS, no_height_factors=NO_HEIGHT_CA
             assert "grid spacing" in msg, f"{label}: spacing x{f} (no height) not refused"
     print(f"{label}: refused without the camera height: {seen}")
     return seen
+
+
+def assert_matches_truth(video, data, label):
+    """The ok rows of a tracked render against its truth (TRUTH.csv's frame): with an
+    honest sigma_xy 99 % of 2-D errors lie within 3 sigma; a lattice a cell or a
+    period off is many sigma off."""
+    import pandas as pd
+
+    truth = pd.read_csv(video.with_suffix(".truth.csv"))
+    m = data.merge(truth[["frame", "x", "y"]], on="frame", suffixes=("", "_t"))
+    ok = m.ok == 1
+    z = (np.hypot(m.x - m.x_t, m.y - m.y_t) / m.sigma_xy)[ok]
+    assert len(z) and (z < 3).mean() >= 0.9 and z.max() < 8, (
+        f"{label}: {ok.sum()} ok rows, error/sigma_xy {z.describe().round(2).to_dict()}")
 
 
 @pytest.fixture(scope="module")
@@ -115,7 +131,7 @@ def test_scale_check_on_a_random_setup(tmp_path, seed, cli):
             assert "folds over" in str(exc), f"seed {seed} {s}: {exc}"
             continue
         try:
-            track_video(video, rig)
+            assert_matches_truth(video, track_video(video, rig).data, f"seed {seed} {s}")
             break
         except TrackingError as exc:
             assert "the grid's scale" not in str(exc), f"seed {seed} {s}: right rig refused"
@@ -178,27 +194,17 @@ def test_random_sweep_never_refuses_a_right_rig(tmp_path, seed):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="open: a 4-cell view at 0.3 m spacing, no camera "
-                   "height - ok rows up to 0.65 m off (cause not yet found)")
 def test_few_cells_in_view_never_lose_the_cell_index(tmp_path):
     """Found by the random scale test (seed 189846550): 480x270, 0.3 m threads seen 4
-    cells across from 3 m.  Without the camera height every ok row's error grows with
-    the distance travelled from the first frame on (7, 20, 35 ... 645 mm: ~2x the path;
-    520 mm RMS) and only a "scale checked to +-21.8 %" warning is given; with the height
-    the scale check refuses the video (markers +32.7 %).  The markers' parallax then
-    implies a camera ~0.4 m up, which nothing checks against the view.  Every ok row
-    must be within 10 mm of the truth."""
-    from curltrack.physics.shot import ShotModel
-    from curltrack.simulate import simulate_series
-
+    cells across from 3 m, faint.  The lens fit freed k2 and the distortion centre
+    with ~2 periods of threads in its region (k2 -> 2.1), the lattice landed on half
+    the x period, and without the camera height every ok row's error grew with the
+    distance travelled (645 mm at 0.6 m: ~2x the path) under a scale-resolution warning
+    only."""
     s = dict(motion="ladder", height_m=2.9848011969541535, tilt_deg=1.2370373711062057,
              k1=-0.08057219805493163, spacing_m=0.3, occlusion=False, v0=0.6618483186028843,
              seed=1989973396, size=(480, 270), view_m=1.2968910906352744)
     video, rig, _ = render_setup(tmp_path / "s.mp4", **s)
     d = track_video(video, rig).data
-    sim = simulate_series(ShotModel(v0=s["v0"], omega0=1.5, alpha_y=0.03), fps=30,
-                          tail_s=0.4).data
-    m = d.merge(sim[["frame", "x", "y"]], on="frame", suffixes=("", "_t"))
-    ok = m.ok == 1
-    err = np.hypot(m.x - m.x_t, m.y - m.y_t)[ok]
-    assert err.max() < 0.010, f"{ok.sum()} ok rows, max {1e3 * err.max():.0f} mm off"
+    assert d.ok.mean() > 0.9, f"{d.ok.sum()} of {len(d)} frames measured"
+    assert_matches_truth(video, d, "seed 189846550 set-up")
