@@ -327,7 +327,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         warnings.append(f"{path}: the first measured frame is at t = {t[ok][0]:.2f} s: the "
                         "origin (the rock at t = 0) is extrapolated back to it, uncertain by "
                         f"~{1e3 * shot['origin_sigma_m']:.0f} mm (included in sigma_xy)")
-    sigma_theta = sig_m / max(lever, 1e-6)
+    sigma_theta = np.hypot(sig_m / max(lever, 1e-6), shot["theta0_sigma_rad"])
     if any(r.field is not None for r in records):
         # the two fields disagree systematically (mis-registration, aliasing, chroma):
         # half their offset is an error of every row that the pixel noise does not show

@@ -31,6 +31,15 @@ EXTRAPOLATION_M_S3 = 4e-4
 MAX_ABS_PHI = 1.0
 #: Floor of a frame's position scatter about the initial fit (m).
 MIN_SCATTER_M = 0.5e-3
+#: The same for the angle (rad): 0.06 deg, below the best clips' frame-to-frame scatter
+#: (~0.1 deg; a floor only guards a fit through too few frames to show any).
+MIN_SCATTER_RAD = 1e-3
+#: The rock's largest angular deceleration (rad/s^2) for the angle's origin extrapolated
+#: by a straight line: the paper's spins (up to ~4 rad/s) stop over >= ~3 s.
+MAX_ANGULAR_DECELERATION = 1.5
+#: Smallest cubic coefficient (rad/s^3) of the angle assumed when its quadratic is
+#: extrapolated back: the position's bound over the inertia radius (~0.14 m).
+EXTRAPOLATION_RAD_S3 = EXTRAPOLATION_M_S3 / 0.14
 
 
 def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> np.ndarray:
@@ -98,24 +107,40 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_point
 
 
 def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
-                  window_s: float = 0.8, min_points: int = 8) -> float:
+                  window_s: float = 0.8, min_points: int = 8, min_scatter=MIN_SCATTER_M,
+                  min_cubic=EXTRAPOLATION_M_S3, noise=None, extrapolated=True) -> float:
     """1 sigma (m) of the origin extrapolated back to t = 0 by :func:`initial_state`.
 
     The fit's own extrapolation variance (from its design and the frames' scatter) plus
-    a model term: the path's departure from a quadratic (``EXTRAPOLATION_M_S3``), or for
+    a model term: the path's departure from a quadratic (``min_cubic``), or for
     a straight line through too few frames, the deceleration it cannot see
     (``max_deceleration_m_s2``, m/s^2).  Infinite when fewer than two frames are measured.
+    ``q`` (N, k) is k coordinates of one point (k = 2: x, y; k = 1 with the angle's
+    ``min_scatter``, ``min_cubic`` and deceleration in radians: its origin theta0).
+    ``noise`` (sigma, rho): the frames' AR(1) noise (of the whole series) for the fit's
+    variance, instead of its own residuals' scatter.
+    ``extrapolated`` False (the first frame at t = 0): the fit's own variance only.
     """
+    q = np.asarray(q, float).reshape(len(t), -1)
     n, deg, A, coef = _window_fit(t, q, window_s, min_points)
     if deg == 0:
         return float("inf")
     dof = n - deg - 1
     res = q[:n] - A @ coef
-    scatter = max(float(np.sqrt(np.sum(res ** 2) / (2 * dof))) if dof > 0 else 0.0,
-                  MIN_SCATTER_M)
-    a0 = np.linalg.pinv(A.T @ A)[0, 0]
-    stat = scatter * np.sqrt(a0)
+    scatter = max(float(np.sqrt(np.sum(res ** 2) / (q.shape[1] * dof))) if dof > 0 else 0.0,
+                  min_scatter)
+    if noise is not None:
+        # frames' errors that persist (blur, exposure, the lattice's fit): the
+        # intercept's variance under the whole series' AR(1) noise (sigma, rho)
+        sig, rho = max(noise[0], min_scatter), noise[1]
+        lag = np.abs(np.subtract.outer(t[:n], t[:n])) / max(float(np.median(np.diff(t))), 1e-9)
+        p0 = np.linalg.pinv(A)[0]
+        stat = sig * float(np.sqrt(max(p0 @ (rho ** lag) @ p0, 0.0)))
+    else:
+        stat = scatter * np.sqrt(np.linalg.pinv(A.T @ A)[0, 0])
     span = float(t[n - 1] - t[0])
+    if not extrapolated:
+        return float(stat)
     if deg == 2:
         # the path's cubic term, bounded from the fit's own deceleration and speed (a
         # slow rock on keen ice decelerates faster and changes its deceleration faster:
@@ -125,11 +150,27 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
         c = np.reshape(coef, (deg + 1, -1))
         accel = 2.0 * np.linalg.norm(c[2])
         speed = np.linalg.norm(c[1] + 2.0 * c[2] * float(np.mean(t[:n])))
-        cubic = max(EXTRAPOLATION_M_S3, MAX_ABS_PHI * accel ** 2 / max(speed, 0.05) / 6.0)
+        cubic = max(min_cubic, MAX_ABS_PHI * accel ** 2 / max(speed, 0.05) / 6.0)
         model = cubic * abs(float((np.linalg.pinv(A) @ t[:n] ** 3)[0]))
     else:
         model = 0.5 * max_deceleration_m_s2 * float(t[0]) * (float(t[0]) + span)
     return float(np.hypot(stat, model))
+
+
+def _frame_noise(t, q):
+    """(sigma, rho) of a coordinate's AR(1) frame noise over the whole shot
+    (:func:`curltrack.series.noise.estimate_noise`), or None with too few frames."""
+    from ..errors import SeriesError
+    from ..series.noise import estimate_noise
+
+    if t.size < 8:
+        return None
+    frame = np.round((t - t[0]) / max(float(np.median(np.diff(t))), 1e-9)).astype(int)
+    try:
+        noise = estimate_noise(frame, q)
+    except SeriesError:
+        return None
+    return noise.sigma, noise.rho
 
 
 def choose_axes(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -168,7 +209,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
         ``x_hat``, ``y_hat`` (lattice-frame unit vectors), ``theta0`` (rad),
         ``direction_source`` ("travel" or "image up"), ``origin_sigma_m``: the origin's
         uncertainty from extrapolating back to t = 0 when the first measured frame is
-        later (m; 0 when it is at t = 0).
+        later (m; 0 when it is at t = 0), ``theta0_sigma_rad``: theta0's (rad; its fit's
+        error also when the first frame is at t = 0).
     """
     st = TrackingSettings() if settings is None else settings
     min_travel = st.min_travel_m
@@ -201,6 +243,12 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     late = tt.size > 0 and tt[0] > 0 and (
         tt.size < 2 or tt[0] > 0.5 * float(np.median(np.diff(tt))))
     origin_sigma = _origin_sigma(tt, cc, st.max_deceleration_m_s2) if late else 0.0
+    # every angle is taken from theta0, itself a fit: its error is every row's (the
+    # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
+    # under a 0.9 deg sigma)
+    theta0_sigma = _origin_sigma(tt, th, MAX_ANGULAR_DECELERATION,
+                                 min_scatter=MIN_SCATTER_RAD, min_cubic=EXTRAPOLATION_RAD_S3,
+                                 noise=_frame_noise(tt, th), extrapolated=late)
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
-            "origin_sigma_m": float(origin_sigma)}
+            "origin_sigma_m": float(origin_sigma), "theta0_sigma_rad": float(theta0_sigma)}

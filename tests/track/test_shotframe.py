@@ -34,3 +34,27 @@ def test_axes_and_origin_follow_the_initial_travel():
         assert abs(out["theta"][0]) < 0.01
         assert np.allclose(out["theta"], 2.0 * t, atol=0.01)
         assert out["y"][-1] > 0
+
+
+def test_theta0_sigma_matches_its_error():
+    """Every angle is measured from theta0, a fit to the first frames: its reported 1
+    sigma must match its error (first frame at or after t = 0, white or correlated
+    frame noise) - an error shared by every row of the shot."""
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    z = []
+    for _ in range(300):
+        t0 = float(rng.choice([0.0, rng.uniform(0.05, 0.4)]))
+        t = np.arange(t0, 4.0, 1 / 30)
+        omega0, decel = rng.uniform(0.5, 3.0), rng.uniform(0.05, 0.3)
+        sig, rho = np.radians(rng.uniform(0.1, 0.6)), rng.uniform(0.0, 0.6)
+        e = np.empty(t.size)
+        e[0] = rng.normal(0, sig)
+        for i in range(1, t.size):
+            e[i] = rho * e[i - 1] + rng.normal(0, sig * np.sqrt(1 - rho ** 2))
+        phi = omega0 * t - 0.5 * decel * t ** 2 + e
+        centre = np.column_stack([np.zeros_like(t), 1.5 * t - 0.1 * t ** 2])
+        out = to_shot_frame(t, centre, phi, np.ones(t.size, bool))
+        z.append(out["theta0"] / out["theta0_sigma_rad"])  # (true theta0 = 0)
+    rms = float(np.sqrt(np.mean(np.square(z))))
+    assert 0.75 < rms < 1.3, f"seed {seed}: RMS of theta0 error / sigma {rms:.2f}"
