@@ -8,7 +8,7 @@ import json
 import os
 import signal
 import stat
-import tempfile
+import secrets
 import threading
 from pathlib import Path
 
@@ -133,25 +133,33 @@ def atomic_path(path, suffix: str | None = None):
     _install_sigterm()
     tmp = None
     try:
-        # (a SIGTERM or Ctrl-C between the file's creation and its name being known
-        # would leave it behind: they wait until then)
-        with _signals_deferred():
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                clean_stale(path)
-                fd, tmp = tempfile.mkstemp(prefix=f"{_temp_prefix(path)}{os.getpid()}.",
-                                           suffix=suffix or path.suffix, dir=path.parent)
-            except OSError as exc:
-                raise CurltrackError(f"cannot write here ({exc.strerror})",
-                                     path=path) from None
-            os.close(fd)
-            _LIVE.add(tmp)
+        # The name is known before the file exists: a SIGTERM or Ctrl-C at any point
+        # after it (also inside the creating call) finds it to remove.  (Blocking the
+        # signals does not close that window: a signal sent to the process goes to a
+        # decoder or encoder thread that does not block it, and Python raises it in the
+        # main thread all the same.)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            clean_stale(path)
+            for _ in range(100):
+                tmp = str(path.parent / f"{_temp_prefix(path)}{os.getpid()}."
+                                        f"{secrets.token_hex(4)}{suffix or path.suffix}")
+                try:
+                    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+                    break
+                except FileExistsError:
+                    tmp = None
+            else:
+                raise FileExistsError(errno.EEXIST, "no free temporary name")
+        except OSError as exc:
+            raise CurltrackError(f"cannot write here ({exc.strerror})", path=path) from None
+        _LIVE.add(tmp)
         try:
             yield Path(tmp)
         except OSError as exc:
             raise write_error(exc, path) from None
         check_writable(path)  # (a FIFO or device made under the name while we wrote)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual mode
+        os.chmod(tmp, 0o666 & ~_umask())  # (made 0600) outputs get the usual mode
         try:
             os.replace(tmp, path)
         except OSError as exc:  # e.g. a directory made under the name while we wrote
@@ -166,18 +174,36 @@ def atomic_path(path, suffix: str | None = None):
 
 
 @contextlib.contextmanager
-def _signals_deferred():
-    """Hold SIGTERM and SIGINT back (delivered on leaving) where the platform can."""
-    held = {signal.SIGTERM, signal.SIGINT}
-    try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-    except (AttributeError, OSError, ValueError):  # (no pthread_sigmask here)
+def signals_after():
+    """Run a block that must not be interrupted by a Python exception: SIGINT and
+    SIGTERM arriving in it are delivered when it ends.
+
+    FFmpeg's encoders (through PyAV) crashed the process (SIGSEGV, ~1 run in 40) when
+    Ctrl-C's KeyboardInterrupt was raised inside them, leaving the temporary file that
+    the clean-up would have removed; between frames the exception unwinds cleanly.
+    """
+    held = (signal.SIGINT, signal.SIGTERM)
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
+    got = []
+    old = {}
+    try:
+        for sig in held:
+            prev = signal.getsignal(sig)
+            if prev is None:  # (a handler not installed from Python: left alone)
+                continue
+            old[sig] = prev
+            signal.signal(sig, lambda signum, frame: got.append(signum))
+    except (ValueError, OSError):
+        pass
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for sig, prev in old.items():
+            signal.signal(sig, prev)
+        if got:
+            signal.raise_signal(got[0])
 
 
 def verify_video(tmp, n_frames: int, path) -> None:

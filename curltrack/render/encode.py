@@ -10,6 +10,7 @@ from fractions import Fraction
 import cv2
 import numpy as np
 
+from .._atomic import signals_after
 from ..errors import ParameterError, VideoError
 from .sensor import TIME_BASE
 
@@ -124,13 +125,17 @@ class _AvWriter:
         f = self.av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="bgr24")
         f.pts = int(round(t * TIME_BASE))
         f.time_base = Fraction(1, TIME_BASE)
-        for p in self.s.encode(f):
-            self.c.mux(p)
+        with signals_after():  # (Ctrl-C between frames, never inside the encoder)
+            for p in self.s.encode(f):
+                self.c.mux(p)
 
     def close(self):
-        for p in self.s.encode():
-            self.c.mux(p)
-        self.c.close()
+        with signals_after():
+            try:
+                for p in self.s.encode():
+                    self.c.mux(p)
+            finally:
+                self.c.close()
 
 
 def open_writer(path, fps: float, size, enc: EncodingConfig | None = None,

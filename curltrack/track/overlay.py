@@ -12,7 +12,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from .._atomic import atomic_path, verify_video
+from .._atomic import atomic_path, signals_after, verify_video
 from ..errors import VideoError
 
 __all__ = ["write_overlay", "overlay_frames", "encode_h264", "write_debug_frames",
@@ -189,20 +189,26 @@ def encode_h264(path, frames, fps, size, crf: int = 23, progress=None):
     w, h = size
     W, H = w + w % 2, h + h % 2
     n = 0
-    with av.open(str(path), "w", format="mp4", options={"movflags": "+faststart"}) as out:
+    out = av.open(str(path), "w", format="mp4", options={"movflags": "+faststart"})
+    try:
         stream = out.add_stream("libx264", rate=Fraction(fps).limit_denominator(1001))
         stream.width, stream.height, stream.pix_fmt = W, H, "yuv420p"
         stream.options = {"crf": str(crf), "preset": "veryfast"}
         for _, img in frames:
             if (W, H) != (w, h):
                 img = np.pad(img, ((0, H - h), (0, W - w), (0, 0)), mode="edge")
-            for packet in stream.encode(av.VideoFrame.from_ndarray(img, format="bgr24")):
-                out.mux(packet)
+            with signals_after():  # (Ctrl-C between frames, never inside the encoder)
+                for packet in stream.encode(av.VideoFrame.from_ndarray(img, format="bgr24")):
+                    out.mux(packet)
             n += 1
             if progress is not None:
                 progress(1)
-        for packet in stream.encode():
-            out.mux(packet)
+        with signals_after():
+            for packet in stream.encode():
+                out.mux(packet)
+    finally:
+        with signals_after():
+            out.close()
     return n
 
 
