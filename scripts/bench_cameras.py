@@ -18,7 +18,9 @@ the instant its rock was exposed; otherwise it is the frame's or field's time):
 
 - ``pos_rms_mm`` / ``theta_rms_deg`` / ``max_mm`` over rows with ``ok`` = 1;
 - ``measured``: fraction of rows with ``ok`` = 1;
-- ``z_xy`` / ``z_theta``: std of error / reported sigma (1 when honest; aim 0.8-1.25);
+- ``z_xy`` / ``z_theta``: RMS of error / reported sigma (1 when honest; aim 0.8-1.25) -
+  the RMS, not the std: an offset shared by every row (an origin or theta0 off) is an
+  error the sigma must cover too;
 - ``speed``: decode-only CPU time of the video / tracking CPU time (the tracking-speed
   ratio of ``scripts/bench.py``, one run);
 - ``rs_off``: for rolling-shutter set-ups, ``pos_rms_mm`` of the same video tracked
@@ -93,8 +95,8 @@ def score(series, truth) -> dict:
     out.update(pos_rms_mm=1e3 * float(np.sqrt(np.mean(e ** 2))), max_mm=1e3 * float(e.max()),
                theta_rms_deg=float(np.degrees(np.sqrt(np.nanmean(dth ** 2)))))
     sig = s["sigma_xy"].to_numpy()[ok]
-    out["z_xy"] = float(np.nanstd(np.r_[dx / sig, dy / sig]))
-    out["z_theta"] = float(np.nanstd(dth / s["sigma_theta"].to_numpy()[ok]))
+    out["z_xy"] = float(np.sqrt(np.nanmean(np.r_[dx / sig, dy / sig] ** 2)))
+    out["z_theta"] = float(np.sqrt(np.nanmean((dth / s["sigma_theta"].to_numpy()[ok]) ** 2)))
     return out
 
 
@@ -185,7 +187,7 @@ def markdown_rows(rows) -> list[str]:
         ok = (r["pos_rms_mm"] <= 1.0 and r["theta_rms_deg"] <= 0.2
               and 0.8 <= r["z_xy"] <= 1.25 and r["measured"] >= 0.95)
         out.append(f"| track camera | {what} | pos {r['pos_rms_mm']:.2f} mm rms "
-                   f"({r['max_mm']:.1f} max), θ {r['theta_rms_deg']:.3f}°, std e/σ "
+                   f"({r['max_mm']:.1f} max), θ {r['theta_rms_deg']:.3f}°, e/σ RMS "
                    f"{r['z_xy']:.2f} / θ {r['z_theta']:.2f}, {r['measured']:.0%} measured, "
                    f"{r['speed']:.2f}× decode{rs} | ≤ 1 mm, ≤ 0.2°, e/σ 0.8–1.25, "
                    f"≥ 95 % | {'✓' if ok else '✗'} |")
