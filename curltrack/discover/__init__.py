@@ -29,7 +29,9 @@ like noise give ``none``, the candidates listed among the findings).  With
 no supported candidate: ``unexplained`` if the baseline residuals are structured, else
 ``none``.  Delta-BIC, threshold and the structure after are measured under the noise
 the candidate's own residuals show (:func:`.search.rescore`: an instrument's persisting
-errors and heavy tails, which the AR(1) model misses).  A supported candidate with a
+errors and heavy tails, which the AR(1) model misses); where that noise exceeds the AR(1)
+model's, the data's linearised delta-BIC -- the statistic the threshold calibrates --
+must clear the threshold too.  A supported candidate with a
 parameter at its bound, or one that makes any coordinate's RMS or held-out RMS worse,
 is not named (``not_named_because``); a baseline parameter at its bound blocks any name.
 An extension (:mod:`.extend`) gives the verdict ``extended`` only when it
@@ -143,7 +145,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
         shots[j].noise[c] = replace(shots[j].noise[c], inflation=infl, tau=tau)
     noise_warnings = persistent_noise_warnings(
         [(shots[j].name, c, infl) for (j, c, _), (infl, _) in zip(base.segments, noise0)])
-    seg_slices = block_lengths(base, noise0)
+    seg_slices = block_lengths(base, residual_noise(base, fit0.r, pool=False))
     before = structure_tests(segments_of(base, fit0, noise0))
     f_time = folds_time(base)
     f_shot = folds_shot(base) if len(shots) > 1 else None

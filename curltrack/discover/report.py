@@ -125,7 +125,7 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN) -> list:
         close_bic = o.delta_bic > best.delta_bic - margin
         close_fit = (o.chi2_gain is not None and best.chi2_gain is not None
                      and o.chi2_gain >= best.chi2_gain
-                     and o.delta_bic > o.threshold["threshold"])
+                     and o.delta_bic > o.threshold["threshold"] and o.linear_clears)
         if close_bic or close_fit:
             out.append(o.name)
     return sorted(out)
@@ -158,7 +158,7 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
         # leave-one-shot-out gain is then the refit's noise, not prediction
         if not sc.per_shot:
             ok_cv = ok_cv or kw["loso_rmse_after"] < kw["loso_rmse_before"]
-    kw["supported"] = bool(sc.delta_bic > max(thr, 0.0) and ok_cv)
+    kw["supported"] = bool(sc.delta_bic > max(thr, 0.0) and sc.linear_clears and ok_cv)
     if kw["supported"]:
         kw["not_named_because"] = _blockers(kw, cand_bounds)
         if kw["not_named_because"]:
