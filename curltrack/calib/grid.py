@@ -28,8 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import TrackingError
-from .lattice import (LENS_PARAMS, MIN_PERIOD_PX, assign_families, fit_lattice,
-                      initial_lattice, per_line_offsets, periods_px)
+from .lattice import (LENS_PARAMS, MIN_PERIOD_PX, assign_families, centre_jacobian,
+                      fit_lattice, initial_lattice, per_line_offsets, periods_px)
 from .lens import apply_h, camera_matrix, corners_px, distort, fold_radius, undistort
 from .response import ColourModel, candidate_pixels, local_contrast, thread_response
 
@@ -263,14 +263,19 @@ def colour_phase(colours: dict, n: int, sign: int | None = None):
     return best[1], best[0], best[2]
 
 
+def _family_coords(pts, Hc, K, dist, family: int):
+    """Lattice coordinate (cells) of observed pixels ``pts`` across a family's threads,
+    and whether each is clear (> 4 px) of the other family's threads."""
+    f, c = K[0, 0], K[:2, 2]
+    ab = apply_h(Hc, (undistort(pts, K, dist) - c) / f)
+    other = ab[:, 1 - family] - np.round(ab[:, 1 - family])
+    return ab[:, family], np.abs(other) * periods_px(Hc, f)[1 - family] > 4.0
+
+
 def _check_period(xs, w, Hc, K, dist, family: int):
     """Thread response half-way between fitted threads of a family -> the period was 2x."""
-    f, c = K[0, 0], K[:2, 2]
-    ab = apply_h(Hc, (undistort(xs, K, dist) - c) / f)
-    frac = ab[:, family] - np.floor(ab[:, family])
-    other = ab[:, 1 - family] - np.round(ab[:, 1 - family])
-    p_other = periods_px(Hc, f)[1 - family]
-    away = np.abs(other) * p_other > 4.0  # pixels of the other family's threads excluded
+    a, away = _family_coords(xs, Hc, K, dist, family)
+    frac = a - np.floor(a)
     on = np.sum(w[away & ((frac < 0.08) | (frac > 0.92))])
     mid = np.sum(w[away & (np.abs(frac - 0.5) < 0.08)])
     return mid > 0.35 * on
@@ -298,8 +303,7 @@ def lattice_tilt_deg(Hc, spacings) -> float:
     spacings : (float, float)
         Thread spacings (m) of families a and b.
     """
-    Hc = np.asarray(Hc, float) / Hc[2, 2]
-    J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])  # d(a, b)/dq at the centre
+    J = centre_jacobian(np.asarray(Hc, float) / Hc[2, 2])
     s = np.linalg.svd(np.diag(spacings) @ J, compute_uv=False)
     return float(np.degrees(np.arccos(np.clip(s[1] / s[0], 0.0, 1.0))))
 
@@ -308,7 +312,7 @@ def _family_spacings(Hc, f, rig):
     """(spacing of family a, of family b) (m) as :func:`_to_metric` assigns them, and
     whether family a is the lattice's x."""
     pa, pb = periods_px(Hc, f)
-    J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])
+    J = centre_jacobian(Hc)
     sx, sy = rig.spacing_x_m, rig.spacing_y_m
     if abs(sx - sy) / max(sx, sy) > 0.08:
         # Spacings differ: the family with the larger px period has the larger spacing.
@@ -328,16 +332,13 @@ def _spurious_threads(xs, w, Hc, K, dist, family: int, width: int, height: int):
     grid mapped the same way gives the length), less the response between the threads,
     is compared with the typical thread's; crossings with the other family are left out.
     """
-    f, c = K[0, 0], K[:2, 2]
-    p_other = periods_px(Hc, f)[1 - family]
     step = max(1, int(round(np.hypot(width, height) / 500)))
     gy, gx = np.mgrid[step / 2:height:step, step / 2:width:step]
     grid = np.column_stack([gx.ravel(), gy.ravel()])
 
     def per_thread(pts, weights):
-        ab = apply_h(Hc, (undistort(pts, K, dist) - c) / f)
-        a, o = ab[:, family], ab[:, 1 - family]
-        ok = np.isfinite(a) & (np.abs(o - np.round(o)) * p_other > 4.0)
+        a, away = _family_coords(pts, Hc, K, dist, family)
+        ok = np.isfinite(a) & away
         idx, frac = np.round(a[ok]), np.abs(a[ok] - np.round(a[ok]))
         on, between = frac < 0.08, (frac > 0.25) & (frac < 0.45)
         return idx, on, between, weights[ok]
@@ -494,14 +495,13 @@ def _fit_lens(xs, wt, Hc, K, w, h, rig, growing, free, free_from):
             if _check_period(xs[sub], wt[sub], Hc, K, dist, fam):
                 Hc[fam] *= 2.0  # the spectrum picked a sub-harmonic: threads every half cell
                 halved = True
-        if not halved:
-            halved, Hc = _drop_spurious_threads(xs[sub], wt[sub], Hc, K, dist, w, h, rig)
-            if halved:  # the lens was bent to the wrong lattice: grow again from none
-                K, dist, radii = K0, (0.0, 0.0), radii0
-                continue
-        if not halved:
+        if halved:
+            radii = [0.5 * half_diag, None]
+            continue
+        dropped, Hc = _drop_spurious_threads(xs[sub], wt[sub], Hc, K, dist, w, h, rig)
+        if not dropped:
             break
-        radii = [0.5 * half_diag, None]
+        K, dist, radii = K0, (0.0, 0.0), radii0  # the lens bent to the wrong lattice: regrow
     Hc, K, dist, info = fit_lattice(xs, wt, Hc, K, dist, free=LENS_PARAMS,
                                     radii=(None,), band_px=2.5, iterations=4)
     if not info or info["lines_a"] < 3 or info["lines_b"] < 3:
@@ -592,7 +592,7 @@ def _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info) -> Calibrat
     """Choose the lattice axes, signs and origin; express the homography in metres."""
     h, w = img.shape[:2]
     f, c = K[0, 0], K[:2, 2]
-    J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])  # d(a, b)/dq at the centre
+    J = centre_jacobian(Hc)  # d(a, b)/dq at the centre
     sx, sy = rig.spacing_x_m, rig.spacing_y_m
     notes = []
     spacings, x_is_a = _family_spacings(Hc, f, rig)

@@ -241,6 +241,13 @@ def assign_families(a, b, pa, pb, band_px, cross_px=None):
     return fam_a, fam_b, ia, ib
 
 
+def centre_jacobian(Hc) -> np.ndarray:
+    """d(a, b)/dq at q = 0 of a homography ``Hc`` (normalised undistorted px -> cells,
+    ``Hc[2, 2]`` = 1): how the lattice coordinates change at the principal point."""
+    Hc = np.asarray(Hc, float)
+    return Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])
+
+
 def periods_px(Hc, f):
     """Pixels per cell of families A and B at the image centre."""
     # |rows of J| with J = d(a, b)/dq at q = 0 = Hc[:2, :2] - Hc[:2, 2] Hc[2, :2]^T

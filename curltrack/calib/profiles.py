@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._stats import median, robust_sigma
+from .lattice import centre_jacobian
 from .lens import apply_h, project, undistort
 
 
@@ -214,7 +215,7 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     if np.any(hi - lo > 1000):
         return None
     Hc_inv = np.linalg.inv(Hc)
-    J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])
+    J = centre_jacobian(Hc)
     p_cell = f / np.linalg.norm(J, axis=1)  # px per cell, families A, B
     # Profiles: on every thread line in view, every step_px along it (clear of the
     # crossing threads), ordered by family, thread, position along the thread.

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..errors import TrackingError
 from .grid import Calibration, PlaneMap, cells_from_metric, colour_phase, metric_from_cells
-from .lattice import fit_points, misfit_field, periods_px
+from .lattice import centre_jacobian, fit_points, misfit_field, periods_px
 from .profiles import sample_threads
 from .lens import apply_h
 
@@ -212,7 +212,7 @@ class GridTracker:
         """
         f = self.K[0, 0]
         Hc = Hc_pred
-        J = Hc[:2, :2] - np.outer(Hc[:2, 2], Hc[2, :2])
+        J = centre_jacobian(Hc)
         normals = J / np.linalg.norm(J, axis=1, keepdims=True)
         blur = np.abs(normals @ motion)  # px of motion across each family per frame
         gap = np.array([5.0, 5.0])  # thread width + prediction error; blur runs along them

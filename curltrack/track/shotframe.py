@@ -126,9 +126,6 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
     if deg == 0:
         return float("inf")
     dof = n - deg - 1
-    res = q[:n] - A @ coef
-    scatter = max(float(np.sqrt(np.sum(res ** 2) / (q.shape[1] * dof))) if dof > 0 else 0.0,
-                  min_scatter)
     if noise is not None:
         # frames' errors that persist (blur, exposure, the lattice's fit): the
         # intercept's variance under the whole series' AR(1) noise (sigma, rho)
@@ -137,6 +134,9 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
         p0 = np.linalg.pinv(A)[0]
         stat = sig * float(np.sqrt(max(p0 @ (rho ** lag) @ p0, 0.0)))
     else:
+        res = q[:n] - A @ coef
+        scatter = max(float(np.sqrt(np.sum(res ** 2) / (q.shape[1] * dof))) if dof > 0
+                      else 0.0, min_scatter)
         stat = scatter * np.sqrt(np.linalg.pinv(A.T @ A)[0, 0])
     span = float(t[n - 1] - t[0])
     if not extrapolated:
