@@ -53,7 +53,7 @@ from .candidates import build_candidates, untested
 from .model import JointModel
 from .results import DiscoveryReport, Finding
 from .residuals import structure_tests
-from .search import (NONLINEAR_MARGIN, best_extension, block_lengths, folds_shot,
+from .search import (NONLINEAR_MARGIN, best_extension, folds_shot,
                      folds_time, heldout, profile_extension, refine_candidate, rescore,
                      residual_noise, score_candidate, segments_of)
 from .shots import shot_from_series
@@ -145,7 +145,6 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
         shots[j].noise[c] = replace(shots[j].noise[c], inflation=infl, tau=tau)
     noise_warnings = persistent_noise_warnings(
         [(shots[j].name, c, infl) for (j, c, _), (infl, _) in zip(base.segments, noise0)])
-    seg_slices = block_lengths(base, residual_noise(base, fit0.r, pool=False))
     before = structure_tests(segments_of(base, fit0, noise0))
     f_time = folds_time(base)
     f_shot = folds_shot(base) if len(shots) > 1 else None
@@ -162,7 +161,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     scores = []
     with progress_bar("discover: bootstrap of each candidate", len(cands)) as advance:
         for c in cands:
-            scores.append(score_candidate(base, fit0, c, seg_slices, rng, n_boot=n_boot))
+            scores.append(score_candidate(base, fit0, c, rng, n_boot=n_boot))
             advance()
     # nonlinear refits of every candidate whose linear delta-BIC comes near its
     # threshold.  (The linear gain is exact near the null, where thresholds live, but can

@@ -8,6 +8,7 @@ from .._atomic import atomic_path, write_json
 from .extend import choose as choose_extension
 from .extend import extension_object
 from .residuals import binned_means
+from .search import heldout_worse_p
 from .results import DiscoveryReport, Finding
 from .shots import COORDS
 
@@ -27,6 +28,9 @@ WORSE_TOLERANCE = 1.02
 #: by a few % between two fits that agree in-sample (theta's went 0.00565 -> 0.00579,
 #: +2.5 %, under a friction law that does not act on theta, its in-sample RMS unchanged)
 HELDOUT_WORSE_TOLERANCE = 1.05
+#: ... and significantly so: one-sided p of the paired test over held-out folds
+#: (:func:`~curltrack.discover.search.heldout_worse_p`) below this
+HELDOUT_WORSE_LEVEL = 0.05
 
 
 def at_bound(fit, bounds: dict, names=None) -> list:
@@ -43,8 +47,14 @@ def at_bound(fit, bounds: dict, names=None) -> list:
     return out
 
 
-def _blockers(f, cand_bounds) -> list:
-    """Why a supported candidate must not be named (empty: nothing against it)."""
+def _blockers(f, cand_bounds, heldout_p=None) -> list:
+    """Why a supported candidate must not be named (empty: nothing against it).
+
+    ``heldout_p`` maps a coordinate to the p-value that its held-out error got worse
+    (:func:`~curltrack.discover.search.heldout_worse_p`); a held-out RMS above the
+    tolerance blocks the name only when that is below :data:`HELDOUT_WORSE_LEVEL` (or
+    cannot be computed)."""
+    heldout_p = heldout_p or {}
     out = [f"parameter {b}" for b in cand_bounds]
     for key, before, after, tol in (
             ("RMS", f["rms_before"], f["rms_after"], WORSE_TOLERANCE),
@@ -52,8 +62,13 @@ def _blockers(f, cand_bounds) -> list:
              HELDOUT_WORSE_TOLERANCE)):
         for c in COORDS:
             b, a = (before or {}).get(c), (after or {}).get(c)
-            if b is not None and a is not None and a > tol * b:
-                out.append(f"{key} of {c} worse ({b:.3g} -> {a:.3g})")
+            if b is None or a is None or a <= tol * b:
+                continue
+            p = heldout_p.get(c, np.nan) if key == "held-out RMS" else np.nan
+            if np.isfinite(p) and p >= HELDOUT_WORSE_LEVEL:
+                continue
+            out.append(f"{key} of {c} worse ({b:.3g} -> {a:.3g}"
+                       + (f", p = {p:.2g})" if np.isfinite(p) else ")"))
     return out
 
 
@@ -160,7 +175,8 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
             ok_cv = ok_cv or kw["loso_rmse_after"] < kw["loso_rmse_before"]
     kw["supported"] = bool(sc.delta_bic > max(thr, 0.0) and sc.linear_clears and ok_cv)
     if kw["supported"]:
-        kw["not_named_because"] = _blockers(kw, cand_bounds)
+        kw["not_named_because"] = _blockers(
+            kw, cand_bounds, {c: heldout_worse_p(h0, sc.heldout["time"], c) for c in COORDS})
         if kw["not_named_because"]:
             kw["evidence"] += "; not named: " + "; ".join(kw["not_named_because"])
     return Finding(**kw)

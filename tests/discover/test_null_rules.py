@@ -1,0 +1,70 @@
+"""The rules that keep a strong real effect from being judged by its own misfit.
+
+* the look-elsewhere bootstrap's blocks come from the residuals the candidate's best
+  linear fit leaves (a strong effect's misfit otherwise reads as noise that persists for
+  seconds, and blocks that long put the misfit itself into the null);
+* a held-out RMS a little above the baseline's blocks a name only when it is worse
+  consistently over the held-out folds, not in one extrapolated block.
+"""
+
+import numpy as np
+import pytest
+
+from curltrack.discover.candidates import build_candidates
+from curltrack.discover.model import JointModel
+from curltrack.discover.search import (alternative_blocks, block_lengths, heldout_worse_p,
+                                       residual_noise, score_candidate)
+from curltrack.discover.shots import shot_from_series
+from discover._synth import make_case
+
+
+def _units(values):
+    return {"units": {"y": np.asarray(values, float)}}
+
+
+def test_heldout_worse_needs_consistent_folds():
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    before = rng.uniform(3e-6, 5e-6, 5)
+    # one extrapolated fold far off, the rest as before (+- 2 %): not significant
+    one_fold = before * rng.uniform(0.98, 1.02, 5)
+    one_fold[int(rng.integers(5))] *= 1.6
+    assert heldout_worse_p(_units(before), _units(one_fold), "y") > 0.05, seed
+    # every fold 20-40 % worse: significant
+    worse = before * rng.uniform(1.2, 1.4, 5)
+    assert heldout_worse_p(_units(before), _units(worse), "y") < 0.01, seed
+    # better is never worse
+    assert heldout_worse_p(_units(before), _units(before * 0.8), "y") > 0.5, seed
+    # too few units to test: nan (the ratio rule alone decides)
+    assert np.isnan(heldout_worse_p(_units(before[:2]), _units(worse[:2]), "y"))
+
+
+def test_blocks_come_from_what_the_candidate_leaves():
+    """A smooth misfit of random size, phase and period in one coordinate (a strong
+    effect the baseline could not fit) reads as noise persisting for seconds: blocks that long would
+    put the misfit itself into the null.  Taken out by the candidate's columns, the
+    residuals are the noise again, and so are the blocks."""
+    from types import SimpleNamespace
+
+    from curltrack.discover.scoring import BLOCK_FRAMES
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    series, _ = make_case("none", 0.0, rng)
+    shots = [shot_from_series(s) for s in series]
+    base = JointModel(shots, "paper")
+    fit0 = base.fit(max_nfev=80)
+    j, c, sl = base.segments[int(rng.integers(len(base.segments)))]
+    t = shots[j].t[shots[j].use[c]]
+    col = np.zeros(fit0.n)      # a misfit over the whole shot, wavering every 7-12 s
+    col[sl] = np.sin(2 * np.pi * t / rng.uniform(7.0, 12.0) + rng.uniform(0, 2 * np.pi))
+    col /= np.linalg.norm(col)
+    misfit = SimpleNamespace(r=fit0.r + rng.uniform(100, 300) * col)
+    clean = [b for _, b in block_lengths(base, residual_noise(base, fit0.r, pool=False))]
+    assert clean == [BLOCK_FRAMES] * len(clean), (seed, clean)     # white noise: short
+    own = [b for _, b in block_lengths(base, residual_noise(base, misfit.r, pool=False))]
+    assert own[base.segments.index((j, c, sl))] > BLOCK_FRAMES, (seed, c, own)
+    # the candidate's columns take the misfit out: the noise's own blocks again
+    assert [b for _, b in alternative_blocks(base, misfit, col[:, None])] == clean, seed
+    # with nothing taken out, the blocks are the baseline's own
+    assert [b for _, b in alternative_blocks(base, misfit, np.zeros((fit0.n, 0)))] == own
