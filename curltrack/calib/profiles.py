@@ -232,7 +232,11 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     for fam in (0, 1):
         other = 1 - fam
         lines = np.arange(np.ceil(lo[fam]), np.floor(hi[fam]) + 1)
-        along = np.arange(lo[other], hi[other], step_cells[fam])
+        # Positions along the threads start mid-cell, locked to the lattice: at a step
+        # near a whole number of cells (the coarse snap's 40 px on 40 px cells) they all
+        # share one phase, which counted from the frame's edge can put every one of them
+        # on a crossing thread - a family with no profile at all, whatever the image.
+        along = np.arange(np.floor(lo[other]) + 0.5, hi[other], step_cells[fam])
         keep = np.abs(along - np.round(along)) > gap_px[other] / p_cell[other]
         if keep_frac < 1.0:
             # whole segments (single profiles of threads averaged whole) whose index

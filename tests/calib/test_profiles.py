@@ -117,3 +117,31 @@ def test_more_profiles_than_one_remap_takes(frame_and_calibration):
     fit, _ = fit_points(dense.xy, dense.w, dense.fam, dense.idx, Hc, cal.K, cal.dist,
                         q=dense.q)
     assert _px_error(fit, Hc, cal.K[0, 0]) < 0.1
+
+
+def test_profiles_a_cell_apart_sample_both_families_wherever_the_frame_edge_falls(
+        frame_and_calibration):
+    """Profiles one cell apart along the threads (the coarse snap's 40 px on 40 px cells)
+    all sit at one phase between the crossing threads.  Counted from the frame's edge,
+    that phase put every profile of a family on a crossing for some views - nothing
+    sampled, the grid "not followed" until the camera had moved (issue 19: the first 16
+    fields of an interlaced clip).  The frame's edge is moved here over a whole cell
+    (the image and its principal point shifted together: the lattice in normalised
+    coordinates unchanged): both families are sampled and found every time."""
+    import cv2
+
+    img, cal, rig = frame_and_calibration
+    Hc = cells_from_metric(cal.H, cal.K, rig.spacing_x_m, rig.spacing_y_m)
+    period = np.array(periods_px(Hc, cal.K[0, 0]))
+    h, w = img.shape[:2]
+    for frac in np.linspace(0.0, 1.0, 16, endpoint=False):
+        t = frac * period  # px
+        moved = cv2.warpAffine(img, np.float32([[1, 0, t[0]], [0, 1, t[1]]]), (w, h),
+                               flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        K = cal.K.copy()
+        K[:2, 2] += t
+        obs = sample_threads(moved, Hc, K, cal.dist, cal.colour_model, 0.45 * period,
+                             step_px=float(period.mean()), gap_px=(5.0, 5.0))
+        assert obs is not None, frac
+        assert min(np.bincount(obs.fam, minlength=2)) >= 6, frac
+        assert min(obs.found) > 0.9, (frac, obs.found)
