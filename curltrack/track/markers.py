@@ -35,6 +35,15 @@ __all__ = ["MarkerDetector", "MarkerFrame", "lab_of_rgb"]
 
 _L_WEIGHT = 0.5
 _ADAPT = 0.15  # weight of a new observation in the running marker colour
+#: An observation teaches the running colour only with at least this fraction of its
+#: chroma off the background, and a hue within this angle of it (:meth:`_adaptable`).
+_ADAPT_MIN_CHROMA = 0.5
+_ADAPT_MAX_HUE_DEG = 60.0
+#: A blob is a chromatic marker only with at least this fraction of the colour model's
+#: chroma and a hue within this angle of it (a camcorder's cyan, chroma ~15 Lab units,
+#: took grey blobs 20-50 px away for the marker: the rock 40 mm, 43 deg off, ok = 1).
+_BLOB_MIN_CHROMA = 0.25
+_BLOB_MAX_HUE_DEG = 75.0
 _WIN = (1.6, 1.5)
 _FLOOR = 0.1
 _CHROMA_P = np.eye(3) - 1.0 / 3.0  # RGB -> its component off the grey axis
@@ -177,6 +186,31 @@ class MarkerDetector:
             masks.append((nearest == c) & (d[..., c] < half_to_bg) & bright)
         return masks
 
+    def _adaptable(self, obs_lab, bg_lab, i, min_chroma: float = None,
+                   max_hue_deg: float = None) -> bool:
+        """Whether an observed core colour may teach the model of marker ``i``: its
+        chroma (Lab a, b off the grey axis) at least :data:`_ADAPT_MIN_CHROMA` of the
+        model's and within :data:`_ADAPT_MAX_HUE_DEG` of its hue (a model with little
+        chroma - a grey or black marker - is taught by any observation).  (Off the grey
+        axis, not off the ring's median: next to the dark handle that median is itself
+        off-grey, and a model's chroma measured from it can look small.)
+
+        A core that is mostly something else - the rock's dark handle next to a
+        marker smeared by coarse chroma (4:1:1 camcorder video), a broom - has the
+        chroma of neither; learning from it a few frames in a row turned a cyan model
+        grey, which then matched the handle and no longer the marker (a rendered
+        camcorder shot lost its markers for the second half of the shot).
+        """
+        m = self.colors_lab[i][1:] - 128.0
+        c = np.asarray(obs_lab, float)[1:] - 128.0
+        nm, nc = float(np.hypot(*m)), float(np.hypot(*c))
+        if nm < 10.0:  # (a marker without much chroma: lightness decides)
+            return True
+        min_chroma = _ADAPT_MIN_CHROMA if min_chroma is None else min_chroma
+        max_hue_deg = _ADAPT_MAX_HUE_DEG if max_hue_deg is None else max_hue_deg
+        return (nc >= min_chroma * nm
+                and float(c @ m) >= np.cos(np.radians(max_hue_deg)) * nc * nm)
+
     def _is_class(self, obs_lab, bg_lab, i) -> bool:
         """The nearest-prototype rule of :meth:`_class_masks` for one colour."""
         c = self.class_of[i]
@@ -189,6 +223,14 @@ class MarkerDetector:
         """Back to the first frame's knowledge: the rig's colours and marker size."""
         self.colors_lab = self.ref_lab.copy()
         self.area_px = self.area_ref_px
+
+    def memory(self) -> tuple:
+        """What :meth:`forget` drops (the learnt colours and size), for :meth:`recall`."""
+        return self.colors_lab.copy(), self.area_px
+
+    def recall(self, memory: tuple) -> None:
+        """Back to a :meth:`memory`."""
+        self.colors_lab, self.area_px = memory[0].copy(), memory[1]
 
     def refine_at(self, image_bgr: np.ndarray, predicted: np.ndarray) -> MarkerFrame | None:
         """Markers measured directly around well-predicted positions, or None.
@@ -473,7 +515,12 @@ class MarkerDetector:
         obs_lab, bg_lab = lab_of_rgb(np.clip(np.stack([col, bg]), 0, 255))
         if check_class and not self._is_class(obs_lab, bg_lab, i):
             return None
+        if not self._adaptable(obs_lab, bg_lab, i, _BLOB_MIN_CHROMA, _BLOB_MAX_HUE_DEG):
+            # a core without the marker's chroma (a grey blob - the handle's edge, a
+            # pebble - near a marker whose colour the camera shows weak) is not it
+            return None
         # Adapt the colour model to what the camera shows (slowly, and only when sure).
-        self.colors_lab[i] = (1 - _ADAPT) * self.colors_lab[i] + _ADAPT * obs_lab
+        if self._adaptable(obs_lab, bg_lab, i):
+            self.colors_lab[i] = (1 - _ADAPT) * self.colors_lab[i] + _ADAPT * obs_lab
         contrast = float(np.linalg.norm(_weigh(obs_lab) - _weigh(bg_lab)))
         return np.array([cx, cy]), sigma, sw, contrast

@@ -141,9 +141,18 @@ class _Follower:
                 # Lost for a while: the size and colours learnt may have drifted onto
                 # what hid the rock (a broom head passes for a marker of 5x the area,
                 # and the real ones are then too small to be candidates): look again
-                # as on the first frame.
+                # as on the first frame - kept only when the rig's colours find more
+                # markers than the learnt ones (tried again at every such search): a
+                # camera whose colours are far from the rig's (a camcorder's washed-out
+                # 4:1:1 chroma) is otherwise left with colours that never find its
+                # markers again.
+                learnt = self.det.memory()
                 self.det.forget()
-                mf = self.det.detect(image)
+                again = self.det.detect(image)
+                if int(again.found.sum()) > int(mf.found.sum()):
+                    mf = again
+                else:
+                    self.det.recall(learnt)
         elif (mf := self.det.refine_at(image, pred)) is not None:
             pass  # measured where predicted: no search needed
         else:

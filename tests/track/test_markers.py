@@ -137,3 +137,21 @@ def test_marker_size_cannot_be_taught_by_what_hides_the_rock():
     near = lambda im: [xy for xy in det._candidates(im, (0, 0, 120, 120), 1)[cls][0]
                        if np.hypot(*(xy - 40)) < 3]
     assert not near(big) and near(small)
+
+
+def test_colour_model_not_taught_by_a_grey_core():
+    """Issue 19 (camcorder): a core without the marker's chroma - the dark handle next
+    to a marker whose colour the camera shows weak - does not teach the colour model,
+    and is no blob of that marker; the marker's own (weaker or stronger) colour does."""
+    det = MarkerDetector(default_rig())
+    i = int(np.argmax(np.hypot(*(det.ref_lab[:, 1:] - 128.0).T)))
+    model = det.colors_lab[i].copy()
+    bg = np.array([140.0, 127.0, 126.0])
+    grey = np.array([90.0, 128.0, 127.0])
+    assert not det._adaptable(grey, bg, i)
+    weak = np.r_[model[0], 128.0 + 0.6 * (model[1:] - 128.0)]
+    assert det._adaptable(weak, bg, i)
+    memory = det.memory()
+    det.forget()
+    det.recall(memory)
+    np.testing.assert_array_equal(det.colors_lab[i], model)
