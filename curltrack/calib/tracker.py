@@ -149,12 +149,18 @@ class GridTracker:
         From :func:`calibrate_frame` on (ideally) the first frame tracked.
     rig : Rig
         For the thread spacings and colours.
+    per_frame : int
+        Exposures per video frame in the indices given to :meth:`update`: 2 for the
+        fields of interlaced video (index = 2 x frame + field), so that the settings'
+        ``stale_frames`` is counted in frames, as it says.
     """
 
-    def __init__(self, calib: Calibration, rig):
+    def __init__(self, calib: Calibration, rig, per_frame: int = 1):
         self.calib = calib
         self.rig = rig
         self.settings = rig.tracking
+        #: frames without a grid after which the prediction is stale, in update's indices
+        self.stale = int(self.settings.stale_frames) * max(int(per_frame), 1)
         self.K = calib.K
         self.dist = tuple(calib.dist)
         self.sx, self.sy = calib.spacing_x_m, calib.spacing_y_m
@@ -176,7 +182,7 @@ class GridTracker:
         if len(hist) < 2 or hist[-2][0] is None:
             return hist[-1][1]
         (i0, _, P0), (i1, H1, P1) = hist[-2], hist[-1]
-        if index - i1 > self.settings.stale_frames:
+        if index - i1 > self.stale:
             return H1  # (a shaking camera's velocity means nothing that far ahead)
         import cv2
 
@@ -281,7 +287,7 @@ class GridTracker:
         H_pred = self._predict(index)
         if anchor is not None:
             last = self._history[-1][0]
-            stale = last is not None and index - last > st.stale_frames
+            stale = last is not None and index - last > self.stale
             H_pred = self._anchored(H_pred, *anchor, max_cells=(
                 st.anchor_max_cells_stale if stale else st.anchor_max_cells))
         Hc_pred = cells_from_metric(H_pred, K, self.sx, self.sy)
@@ -361,7 +367,7 @@ class GridTracker:
                             "cells more than predicted and the thread colours cannot tell")
             return pose
         last = self._history[-1][0]
-        if ((last is not None and index - last > st.stale_frames) or np.any(k != 0)
+        if ((last is not None and index - last > self.stale) or np.any(k != 0)
                 or np.max(np.abs(jump)) > st.ambiguous_cells):
             # the index rests on a stale prediction or on the colours (modulo their
             # number): continuous from here on, but its offset is not known here

@@ -56,6 +56,10 @@ _CHROMA_MIN_SUM = 60.0
 #: Frames at least this large (short side, px) are first searched at half resolution
 #: while the marker size is unknown (full resolution when that misses a marker).
 _LOWRES_FIRST_MIN_PX = 480
+#: Largest region (marker areas) of a marker's colour class searched for a marker-sized
+#: core against its own colour (:meth:`MarkerDetector._split_oversized`): the rock's
+#: whole top, ~130 marker areas (a 25 mm marker on a 0.29 m rock).
+_SPLIT_MAX_AREAS = 150.0
 
 
 def lab_of_rgb(rgb) -> np.ndarray:
@@ -378,16 +382,70 @@ class MarkerDetector:
             masks = self._class_masks(lab, median(lab.reshape(-1, 3)[::3], axis=0))
         cands = []
         for c, mask in enumerate(masks):
-            n, _, stats, cents = cv2.connectedComponentsWithStats(mask.view(np.uint8), 8)
+            n, labels, stats, cents = cv2.connectedComponentsWithStats(mask.view(np.uint8), 8)
             areas = stats[1:, cv2.CC_STAT_AREA].astype(float) * step ** 2
             xy = cents[1:] * step + (0.5 * (step - 1) + x0, 0.5 * (step - 1) + y0)
             if self.area_px is None:
                 keep = areas >= 3.0
             else:  # (a marker-coloured patch of ice or broom much larger is not one)
                 keep = (areas >= max(3.0, 0.25 * self.area_px)) & (areas <= 4.0 * self.area_px)
+            if self.area_px is not None and not chromatic:
+                # An oversized region may hold the marker inside a surface of nearly its
+                # colour: looked at against that surface, its marker-coloured core
+                split = self._split_oversized(patch, labels, stats, c, step, (x0, y0),
+                                              areas)
+                if split is not None:
+                    xy = np.vstack([xy, split[0]])
+                    areas = np.concatenate([areas, split[1]])
+                    keep = np.concatenate([keep, np.ones(len(split[1]), bool)])
             order = np.argsort(-areas[keep])[:6]
             cands.append((xy[keep][order], areas[keep][order]))
         return cands
+
+    def _split_oversized(self, patch, labels, stats, c, step, origin, areas):
+        """Marker-sized cores of the oversized regions of colour class ``c``, or None.
+
+        A region classified as the marker's colour over several marker areas (more than
+        the candidates' 4x) is mostly something of nearly that colour: a marker whose
+        colour the camera shows washed out (a camcorder's 4:1:1 chroma at a low bitrate:
+        a cyan ~15 Lab units off grey) is then not told apart from the rock's surface
+        against the frame's background (the ice), and the rock's whole top passes for
+        the marker.  Each such region (up to :data:`_SPLIT_MAX_AREAS` marker areas) is
+        classified once more against its own median colour - the surface around the
+        marker - with the same nearest-prototype rule: a marker-sized blob inside it
+        whose colour stands off that surface towards the marker's is a candidate (its
+        sub-pixel refinement then checks its core's chroma against the ring around it,
+        as for any candidate).  A region of one colour throughout (a patch of ice, a
+        broom) leaves no such core.  Returns (xy (K, 2) px, areas (K,) px^2).
+        """
+        import cv2
+
+        out_xy, out_a = [], []
+        big = np.flatnonzero((areas > 4.0 * self.area_px)
+                             & (areas <= _SPLIT_MAX_AREAS * self.area_px))
+        r_lo = np.sqrt(self.area_px / np.pi) / step  # marker radius at this resolution
+        for j in big[:3]:
+            x, y, w, h = (int(v) for v in stats[j + 1, :4])
+            m = int(np.ceil(r_lo)) + 1
+            ya, yb = max(0, y - m), min(patch.shape[0], y + h + m)
+            xa, xb = max(0, x - m), min(patch.shape[1], x + w + m)
+            region = labels[ya:yb, xa:xb] == j + 1
+            lab = cv2.cvtColor(np.ascontiguousarray(patch[ya:yb, xa:xb]),
+                               cv2.COLOR_BGR2Lab).astype(np.float32)
+            surface = median(lab[region], axis=0)
+            sub = self._class_masks(lab, surface)[c] & region
+            n, _, st, ce = cv2.connectedComponentsWithStats(sub.view(np.uint8), 8)
+            a = st[1:, cv2.CC_STAT_AREA].astype(float) * step ** 2
+            ok = (a >= max(3.0, 0.25 * self.area_px)) & (a <= 4.0 * self.area_px)
+            if not ok.any():
+                continue
+            pts = (ce[1:][ok] + (xa, ya)) * step + (0.5 * (step - 1) + origin[0],
+                                                     0.5 * (step - 1) + origin[1])
+            out_xy.append(pts)
+            out_a.append(a[ok])
+        if not out_xy:
+            return None
+        return np.vstack(out_xy), np.concatenate(out_a)
 
     # --- identity ----------------------------------------------------------------------
     def _assign(self, cands, predicted, gate_px):

@@ -356,7 +356,10 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
                                         f"{fr.index}: {calib_msg}", path=path,
                                         where=f"frame {fr.index}")
                 continue
-            tracker, calib_frame = GridTracker(calib, rig), fr.index
+            # (the settings' frame counts are frames: an interlaced video's fields
+            # come two per frame)
+            per_frame = 1 if fr.field is None else 2
+            tracker, calib_frame = GridTracker(calib, rig, per_frame), fr.index
         # The grid is followed in every frame, also while the markers are hidden (a
         # broom), so that its motion prediction - and the cell index - stay current.
         anchor = None
@@ -364,7 +367,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             M = len(L)
             q = undistort(np.vstack([mf.xy_px, pixel_steps(mf.xy_px.mean(axis=0))]),
                           calib.K, calib.dist)
-            anchor = _anchor(markers_ice, q[:M], k, st.anchor_max_gap_frames)
+            anchor = _anchor(markers_ice, q[:M], k, st.anchor_max_gap_frames * per_frame)
         pose = tracker.update(img, k, mask=mask, anchor=anchor)
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px

@@ -155,3 +155,50 @@ def test_colour_model_not_taught_by_a_grey_core():
     det.forget()
     det.recall(memory)
     np.testing.assert_array_equal(det.colors_lab[i], model)
+
+
+def test_washed_out_marker_inside_a_surface_of_nearly_its_colour():
+    """A marker whose colour the camera shows washed out (a camcorder's 4:1:1 chroma at
+    a low bitrate: Lab ~15 units off grey) on a rock top of nearly that colour: against
+    the frame's background (the ice) the whole top is classified as the marker, a region
+    of ~20 marker areas; the marker is its core against the top's own colour."""
+    import cv2
+
+    from curltrack.track.markers import lab_of_rgb
+
+    rig = default_rig()
+    rig = type(rig)(markers=(Marker("#ffd000", 0.08, 0.0), Marker("#00c0ff", -0.08, 0.0)))
+
+    def bgr(lab):
+        px = np.array(lab, np.uint8).reshape(1, 1, 3)
+        return cv2.cvtColor(px, cv2.COLOR_Lab2BGR).reshape(3).astype(float)
+
+    rng = np.random.default_rng(3)
+    h, w = 300, 400
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    img = np.empty((h, w, 3))
+    img[:] = bgr((205, 126, 126))  # ice
+    c = np.array([200.3, 150.6])
+    top = np.hypot(xx - c[0], yy - c[1]) < 40
+    img[top] = bgr((141, 124, 125))  # the rock's top, granite
+    truth = np.array([c + (21.5, 0.0), c - (21.5, 0.0)])
+    for xy, lab in zip(truth, ((215, 118, 190), (160, 108, 119))):  # yellow, cyan washed out
+        # a 5 px marker, anti-aliased
+        cover = np.clip(5.0 - np.hypot(xx - xy[0], yy - xy[1]) + 0.5, 0.0, 1.0)[..., None]
+        img = img * (1 - cover) + bgr(lab) * cover
+    img = cv2.GaussianBlur(img, (0, 0), 0.8) + rng.normal(0, 1.5, img.shape)
+    img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    det = MarkerDetector(rig)
+    # what the detector learnt over earlier frames: the markers' size and the washed-out
+    # colours (a cyan between the top's grey and the marker)
+    det.area_px = det.area_ref_px = np.pi * 5.0 ** 2
+    det.colors_lab = np.array([lab_of_rgb(img[int(round(truth[0, 1])), int(round(truth[0, 0]))][::-1]),
+                               [155.0, 116.0, 118.0]])
+    mf = det.detect(img)
+    assert mf.found.all(), mf.message
+    assert np.hypot(*(mf.xy_px - truth).T).max() < 0.5
+    # a top of one colour throughout (no marker in it) leaves no candidate
+    plain = img.copy()
+    plain[top] = np.clip(np.rint(bgr((141, 124, 125))), 0, 255).astype(np.uint8)
+    det.colors_lab[1] = (155.0, 116.0, 118.0)
+    assert not det.detect(plain).found[1]
