@@ -64,7 +64,7 @@ class FrameRecord:
     phi: float = np.nan  # angle against the lattice (rad)
     scale: float = np.nan  # apparent layout scale H/(H-h)
     sigma_m: float = np.nan  # 1 sigma of one marker on the ice (m)
-    grid_sigma_m: float = np.nan  # 1 sigma of the homography at the image centre (m)
+    grid_sigma_m: float = np.nan  # 1 sigma of the homography at the rock (m)
     grid_residual_m: float = np.nan  # thread points' RMS miss of the fitted lattice (m)
     # the lattice's local misfit at the rock: how far it moves the apparent centre (m,
     # lattice x, y) and its 1 sigma (m, x, y); applied in build_series
@@ -419,7 +419,9 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             rec.outline_m = outline_radius(img, pose.H, calib.K, calib.dist, c,
                                            rig.rock_diameter_m / 2)[0]
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
-        rec.grid_sigma_m = (pose.sigma_px if np.isfinite(pose.sigma_px) else 0.3) * mpp
+        # (the homography's uncertainty where the rock is, not at the image centre)
+        g_px = pose.sigma_px_at((q[:M].mean(axis=0) - calib.K[:2, 2]) / calib.K[0, 0])
+        rec.grid_sigma_m = (g_px if np.isfinite(g_px) else 0.3) * mpp
         if fr.field is not None:
             rec.sigma_m *= FIELD_SIGMA_FACTOR
             rec.grid_sigma_m *= FIELD_SIGMA_FACTOR
