@@ -37,7 +37,8 @@ import numpy as np
 
 from ..errors import TrackingError
 from .grid import Calibration, PlaneMap, cells_from_metric, colour_phase, metric_from_cells
-from .lattice import centre_jacobian, fit_points, misfit_field, periods_px
+from .lattice import (centre_jacobian, fit_points, misfit_field, periods_px,
+                      position_sigma_at)
 from .profiles import sample_threads
 from .lens import apply_h
 
@@ -111,7 +112,8 @@ class GridPose(PlaneMap):
     n_threads : int
         Threads fitted (both families).
     sigma_px : float
-        Rough 1-sigma uncertainty of the homography at the image centre (px).
+        Rough 1-sigma uncertainty of the homography at the image centre (px); at other
+        points :meth:`sigma_px_at`.
     jump_cells : (float, float)
         Snap correction relative to the motion prediction (cells, x and y family).
     segment : int
@@ -138,6 +140,17 @@ class GridPose(PlaneMap):
     segment: int = 0
     notes: list = field(default_factory=list)
     misfit: tuple | None = None
+    #: (the lattice as fitted - before any whole-cell shift -, its (8, 8) covariance)
+    fit_cov: tuple | None = None
+
+    def sigma_px_at(self, q) -> float:
+        """1 sigma (px) of the lattice position at the normalised undistorted point
+        ``q`` ((x_u - c) / f): the homography's uncertainty there, which away from the
+        image centre can be many times ``sigma_px`` (:func:`.lattice.position_sigma_at`);
+        ``sigma_px`` without the covariance."""
+        if self.fit_cov is None:
+            return self.sigma_px
+        return float(position_sigma_at(*self.fit_cov, q, self.K[0, 0])[0])
 
 
 class GridTracker:
@@ -340,6 +353,7 @@ class GridTracker:
             return failed(why)
         # (before any whole-cell shift: the points' indices are this fit's)
         misfit = misfit_field(obs.q, obs.w, obs.fam, obs.idx, Hc, f)
+        fit_cov = (Hc, info["cov"])
         jump = _origin(Hc) - _origin(Hc_pred)
         # The colours are read when the index could have slipped (a coarse snap, a large
         # correction) and every COLOUR_CHECK_EVERY frames as a confirmation.
@@ -355,7 +369,7 @@ class GridTracker:
                         residual_px=info["rms_px"],
                         n_threads=int(info["lines_a"] + info["lines_b"]),
                         sigma_px=info["sigma_px"], jump_cells=(float(jump[0]), float(jump[1])),
-                        misfit=misfit)
+                        misfit=misfit, fit_cov=fit_cov)
         if ambiguous:
             pose.ok = False
             pose.message = "cell index uncertain: " + note

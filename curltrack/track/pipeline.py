@@ -37,6 +37,17 @@ FULL_SEARCH_FRAMES = 15
 #: The status of a frame that shows nothing (grey std below ``blank_std``: black, or a
 #: flat fade-in).  Leading blank frames are skipped (t = 0 at the first real one).
 BLANK = "blank frame (no image content)"
+#: The status of a frame that repeats the one before (:class:`_FrozenCheck`).
+FROZEN = "frozen frame (the image of the frame before again: a dropped frame repeated)"
+#: A frame is frozen when its grey levels (1/4 size) differ from the previous frame's by
+#: less than ``FROZEN_RATIO`` x the median change of the last ``FROZEN_HISTORY`` frames,
+#: and that change is over ``FROZEN_MIN_CHANGE`` (mean absolute grey levels).  Rendered
+#: and real clips change by 3-6 levels a frame (noise, camera, rock); a repeated frame
+#: re-encoded by 0.05-0.07 (CI seed 1539124920).  A video that does not change at all
+#: (no noise, nothing moving) is never judged: a repeat is harmless there.
+FROZEN_RATIO = 0.1
+FROZEN_MIN_CHANGE = 0.5
+FROZEN_HISTORY = 5
 #: The rock's outline (~1 ms a frame) is measured on about this many frames of a shot.
 OUTLINE_FRAMES = 40
 
@@ -64,7 +75,7 @@ class FrameRecord:
     phi: float = np.nan  # angle against the lattice (rad)
     scale: float = np.nan  # apparent layout scale H/(H-h)
     sigma_m: float = np.nan  # 1 sigma of one marker on the ice (m)
-    grid_sigma_m: float = np.nan  # 1 sigma of the homography at the image centre (m)
+    grid_sigma_m: float = np.nan  # 1 sigma of the homography at the rock (m)
     grid_residual_m: float = np.nan  # thread points' RMS miss of the fitted lattice (m)
     # the lattice's local misfit at the rock: how far it moves the apparent centre (m,
     # lattice x, y) and its 1 sigma (m, x, y); applied in build_series
@@ -198,6 +209,37 @@ class _Follower:
         return m
 
 
+class _FrozenCheck:
+    """Whether a frame repeats the frame before it (a dropped frame that the camera or
+    the encoder filled with the previous image).  Such a frame shows an earlier instant
+    than its time stamp: measured, the rock is one frame of its motion off (~70 mm at
+    2 m/s) under a sigma of a millimetre, and fed to the followers it tells them that
+    camera and rock stopped - the next frame's prediction is then two frames of motion
+    short, which can slip the grid's cell index (CI seed 1539124920: one repeated frame,
+    the index 4 cells off, 31 frames refused).  Progressive video only (the two fields
+    of a frame differ in any case)."""
+
+    def __init__(self):
+        self.prev = None  # the last frame's small grey image
+        self.changes: list[float] = []  # the last non-frozen frames' changes
+
+    def __call__(self, image) -> bool:
+        import cv2
+
+        g = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
+        small = cv2.resize(g, (max(g.shape[1] // 4, 1), max(g.shape[0] // 4, 1)),
+                           interpolation=cv2.INTER_AREA).astype(np.float32)
+        prev, self.prev = self.prev, small
+        if prev is None or prev.shape != small.shape:
+            return False
+        change = float(cv2.absdiff(small, prev).mean())
+        typical = float(np.median(self.changes)) if self.changes else 0.0
+        if typical > FROZEN_MIN_CHANGE and change < FROZEN_RATIO * typical:
+            return True  # (not a change of its own: the typical one is kept)
+        self.changes = (self.changes + [change])[-FROZEN_HISTORY:]
+        return False
+
+
 def _anchor(markers_ice, markers_px, frame, max_gap: int):
     """The markers seen in ``frame`` (undistorted px) and their positions on the ice
     extrapolated from the last two measured frames (constant velocity; the rock's motion
@@ -318,6 +360,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     seen_markers = False
     markers_ice: list[tuple[int, np.ndarray]] = []  # last two measured (frame, (M, 2) m)
     rec_segment = 0  # grid segment of markers_ice
+    frozen = _FrozenCheck()
     for fr in frames:
         rec = FrameRecord(fr.index, fr.t, field=fr.field)
         k = fr.sample  # running exposure index (frames, or fields of interlaced video)
@@ -327,6 +370,12 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         img = fr.image
         if not seen_markers and blank_frame(img, st):  # black lead-in
             rec.status = BLANK  # (before the detector sees it: it adapts to what it sees)
+            continue
+        if fr.field is None and frozen(img):
+            # (neither follower sees it: it would tell them that everything stopped)
+            rec.status = rec.grid_status = FROZEN
+            if len(records) >= 2:  # (what it shows is what the frame before showed)
+                rec.markers_found = records[-2].markers_found
             continue
         mf = fol.detect(img, k)
         found = mf is not None and bool(mf.found.all())
@@ -419,7 +468,9 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             rec.outline_m = outline_radius(img, pose.H, calib.K, calib.dist, c,
                                            rig.rock_diameter_m / 2)[0]
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
-        rec.grid_sigma_m = (pose.sigma_px if np.isfinite(pose.sigma_px) else 0.3) * mpp
+        # (the homography's uncertainty where the rock is, not at the image centre)
+        g_px = pose.sigma_px_at((q[:M].mean(axis=0) - calib.K[:2, 2]) / calib.K[0, 0])
+        rec.grid_sigma_m = (g_px if np.isfinite(g_px) else 0.3) * mpp
         if fr.field is not None:
             rec.sigma_m *= FIELD_SIGMA_FACTOR
             rec.grid_sigma_m *= FIELD_SIGMA_FACTOR

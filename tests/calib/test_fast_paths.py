@@ -80,3 +80,39 @@ def test_fit_points_recovers_the_lattice(seed):
     err_px = err_cells * np.array(lattice.periods_px(Hc, K[0, 0]))
     assert err_px.max() < 0.03
     assert 0.02 < info["rms_px"] < 0.1  # the 0.05 px per axis noise, projected
+
+
+def test_position_sigma_at_matches_the_scatter_off_centre():
+    """One family's points all near the middle of the view (threads averaged whole under
+    motion blur): the lattice's error at a point 0.15 f off the centre is many times the
+    centre's sigma_px, and position_sigma_at predicts it (Monte Carlo over 200 fits)."""
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    K = camera_matrix(960, 540)
+    dist = (0.0, 0.0)
+    Hc = np.array([[6.0, 0.1, 0.2], [-0.1, 6.0, -0.3], [0.01, -0.01, 1.0]])
+    # family A: 17 threads, 2 points each across the view; family B: 9 threads, one
+    # point each near x = 0
+    ia = np.repeat(np.arange(-8, 9), 2)
+    ab_a = np.column_stack([ia, np.tile([-1.0, 1.0], 17)])
+    ib = np.arange(-4, 5)
+    ab_b = np.column_stack([rng.uniform(-0.2, 0.2, 9), ib])
+    ab = np.vstack([ab_a, ab_b]).astype(float)
+    fam = np.r_[np.zeros(len(ia), int), np.ones(9, int)]
+    idx = np.r_[ia, ib]
+    und = K[:2, 2] + K[0, 0] * apply_h(np.linalg.inv(Hc), ab)
+    q_off = np.array([[0.15, 0.02]])
+    err, pred, centre = [], [], []
+    for _ in range(200):
+        xy = und + rng.normal(0, 0.1, und.shape)
+        fit, info = lattice.fit_points(xy, np.ones(len(xy)), fam, idx, Hc, K, dist)
+        e_cells = apply_h(fit, q_off)[0] - apply_h(Hc, q_off)[0]
+        err.append(np.hypot(*(e_cells * lattice.periods_px(Hc, K[0, 0]))))
+        pred.append(lattice.position_sigma_at(fit, info["cov"], q_off, K[0, 0])[0])
+        centre.append(info["sigma_px"])
+        np.testing.assert_allclose(
+            lattice.position_sigma_at(fit, info["cov"], [[0.0, 0.0]], K[0, 0])[0],
+            info["sigma_px"], rtol=1e-6)
+    rms = float(np.sqrt(np.mean(np.square(err))))
+    assert rms > 3 * np.median(centre), f"seed {seed}"
+    assert 0.7 < rms / np.median(pred) < 1.4, f"seed {seed}: {rms} vs {np.median(pred)}"
