@@ -8,7 +8,7 @@ from .._atomic import atomic_path, write_json
 from .extend import choose as choose_extension
 from .extend import extension_object
 from .residuals import binned_means
-from .search import heldout_worse_p
+from .search import heldout_log_ratio, heldout_worse_p
 from .results import DiscoveryReport, Finding
 from .shots import COORDS
 
@@ -165,7 +165,7 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
               structure_after={"p_min_adjusted": sc.structure_after.p_min_adjusted,
                                "structured": sc.structure_after.structured,
                                "where": sc.structure_after.where})
-    ok_cv = kw["heldout_rmse_after"] < kw["heldout_rmse_before"]
+    ok_cv = heldout_log_ratio(h0, sc.heldout["time"]) < 0
     if h0_loso is not None and "shot" in sc.heldout:
         kw.update(loso_rmse_before=h0_loso["scalar"],
                   loso_rmse_after=sc.heldout["shot"]["scalar"])

@@ -4,7 +4,9 @@
   linear fit leaves (a strong effect's misfit otherwise reads as noise that persists for
   seconds, and blocks that long put the misfit itself into the null);
 * a held-out RMS a little above the baseline's blocks a name only when it is worse
-  consistently over the held-out folds, not in one extrapolated block.
+  consistently over the held-out folds, not in one extrapolated block;
+* a candidate predicts better when its folds do, relatively, not when the pooled RMS
+  (ruled by the fold extrapolated back to the release) drops.
 """
 
 import numpy as np
@@ -12,8 +14,8 @@ import pytest
 
 from curltrack.discover.candidates import build_candidates
 from curltrack.discover.model import JointModel
-from curltrack.discover.search import (alternative_blocks, block_lengths, heldout_worse_p,
-                                       residual_noise, score_candidate)
+from curltrack.discover.search import (alternative_blocks, block_lengths, heldout_log_ratio,
+                                       heldout_worse_p, residual_noise)
 from curltrack.discover.shots import shot_from_series
 from discover._synth import make_case
 
@@ -37,6 +39,25 @@ def test_heldout_worse_needs_consistent_folds():
     assert heldout_worse_p(_units(before), _units(before * 0.8), "y") > 0.5, seed
     # too few units to test: nan (the ratio rule alone decides)
     assert np.isnan(heldout_worse_p(_units(before[:2]), _units(worse[:2]), "y"))
+
+
+def test_heldout_gain_is_not_ruled_by_one_fold():
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    before = {"units": {"x": rng.uniform(30, 200, 5), "y": rng.uniform(3, 6, 5)}}
+    # the candidate explains the later folds; the first, extrapolated back to the
+    # release and far off for both, gets a little worse and rules the pooled RMS
+    after = {"units": {"x": before["units"]["x"] * rng.uniform(0.05, 0.2, 5),
+                       "y": before["units"]["y"] * rng.uniform(0.95, 1.05, 5)}}
+    gained = float(np.sum(before["units"]["x"][1:] - after["units"]["x"][1:]))
+    before["units"]["x"][0] = 1000.0
+    after["units"]["x"][0] = 1000.0 + gained * rng.uniform(1.1, 2.0)
+    pooled = [np.mean(np.concatenate(list(h["units"].values()))) for h in (before, after)]
+    assert pooled[1] > pooled[0], seed          # the premise: pooled, it looks worse
+    assert heldout_log_ratio(before, after) < 0, seed
+    # a candidate that only adds scatter to every fold does not predict better
+    noisy = {"units": {c: v * rng.uniform(1.0, 1.3, v.size) for c, v in before["units"].items()}}
+    assert heldout_log_ratio(before, noisy) > 0, seed
 
 
 def test_blocks_come_from_what_the_candidate_leaves():
