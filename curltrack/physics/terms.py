@@ -92,35 +92,52 @@ class Extension(NamedTuple):
                    trans_c=kinds.get("translation_coupling", 0.0), curl=kinds.get("curl_spin"),
                    law=kinds.get("speed_law"))
 
-    def _field(self, y: float) -> float:
-        if self.field is None:
-            return 1.0
-        k, a, b = self.field
-        return max(1.0 + a * math.cos(k * y) + b * math.sin(k * y), MIN_FACTOR)
+    def packed(self) -> tuple:
+        """The multipliers as the flat tuple of floats the ODE kernel reads
+        (:mod:`._ode`; an absent term is a flag 0 and neutral values)."""
+        k, a, b = self.field if self.field is not None else (0.0, 0.0, 0.0)
+        p, w_ref, w_min = self.curl if self.curl is not None else (0.0, 1.0, 0.0)
+        dphi, u_k, u_f = self.law if self.law is not None else (0.0, 1.0, 1.0)
+        return (float(self.field is not None), k, a, b, self.spin_c, self.trans_c,
+                float(self.curl is not None), p, w_ref, w_min,
+                float(self.law is not None), dphi, u_k, u_f)
 
-    def friction(self, y: float, omega_abs: float, v: float = 1.0) -> float:
-        """Multiplier of the translational friction at position ``y``, spin |omega| and
-        speed ``v`` (m/s)."""
-        f = self._field(y)
-        if self.trans_c:
-            f *= max(1.0 + self.trans_c * omega_abs, MIN_FACTOR)
-        if self.law is not None:
-            f *= speed_law_gain(v, *self.law)
-        return f
 
-    def spin_friction(self, y: float, v: float) -> float:
-        """Multiplier of the rotational friction at position ``y`` and speed ``v``."""
-        f = self._field(y)
-        if self.spin_c:
-            f *= max(1.0 + self.spin_c * v, MIN_FACTOR)
-        return f
+# Scalar kernels: plain ``math`` on floats, so that the ODE's right-hand side
+# (:mod:`._ode`) can compile these same functions; the array functions below call them
+# for scalars.
 
-    def curl_gain(self, omega_abs: float) -> float:
-        """Multiplier of a_T at spin |omega| (rad/s)."""
-        if self.curl is None:
-            return 1.0
-        p, w_ref, w_min = self.curl
-        return ((omega_abs * omega_abs + w_min * w_min) / (w_ref * w_ref)) ** (0.5 * p)
+def field_gain(y, k, a, b):
+    """Friction multiplier 1 + a cos(k y) + b sin(k y) of a periodic field at ``y`` (m),
+    clipped at :data:`MIN_FACTOR`."""
+    return max(1.0 + a * math.cos(k * y) + b * math.sin(k * y), MIN_FACTOR)
+
+
+def coupling_gain(c, u):
+    """Friction multiplier 1 + c u of a coupling to ``u`` (a speed or a spin), clipped at
+    :data:`MIN_FACTOR`."""
+    return max(1.0 + c * u, MIN_FACTOR)
+
+
+def curl_gain(omega_abs, p, w_ref, w_min):
+    """Multiplier ((|omega|^2 + w_min^2) / w_ref^2)^(p/2) of a_T (rad/s)."""
+    return ((omega_abs * omega_abs + w_min * w_min) / (w_ref * w_ref)) ** (0.5 * p)
+
+
+def speed_law_kernel(u, dphi, u_knee, u_floor):
+    """:func:`speed_law_gain` of one float."""
+    u2 = u * u
+    return ((u2 + u_knee * u_knee) / (u2 + u_floor * u_floor)) ** (0.5 * dphi)
+
+
+def transverse_kernel(v, k, v_ref, v_min):
+    """:func:`transverse_gain` of one float with a gain term ``(k, v_ref, v_min)``."""
+    return ((v * v + v_min * v_min) / (v_ref * v_ref)) ** (-0.5 * k)
+
+
+def heading_kernel(a_perp, v, v_c):
+    """:func:`heading_rate` of floats."""
+    return a_perp * -math.expm1(-(v / v_c) ** 2) / v if v > 0 else 0.0
 
 
 def speed_law_gain(u, dphi: float, u_knee: float, u_floor: float):
@@ -131,9 +148,8 @@ def speed_law_gain(u, dphi: float, u_knee: float, u_floor: float):
     bounded by (u_knee/u_floor)^dphi as u -> 0, so the rock still stops in finite time
     and the equations stay smooth.  ``u`` in m/s (scalar or array).
     """
-    if isinstance(u, float):  # the ODE's right-hand side: keep scalar calls cheap
-        u2 = u * u
-        return ((u2 + u_knee * u_knee) / (u2 + u_floor * u_floor)) ** (0.5 * dphi)
+    if isinstance(u, float):
+        return speed_law_kernel(u, dphi, u_knee, u_floor)
     u2 = np.square(np.asarray(u, dtype=float))
     return ((u2 + u_knee * u_knee) / (u2 + u_floor * u_floor)) ** (0.5 * dphi)
 
@@ -161,6 +177,8 @@ def transverse_gain(v, late_curl):
     if late_curl is None:
         return np.ones_like(v) if isinstance(v, np.ndarray) else 1.0
     k, v_ref, v_min = late_curl
+    if isinstance(v, float):
+        return transverse_kernel(v, k, v_ref, v_min)
     return ((v * v * 1.0 + v_min * v_min) / (v_ref * v_ref)) ** (-0.5 * k)
 
 
@@ -184,7 +202,7 @@ def heading_rate(a_perp, v, v_c: float):
     included); with v_c = 1 cm/s it changes a draw's curl by ~1e-5 relative.
     """
     if isinstance(v, float):
-        return a_perp * -math.expm1(-(v / v_c) ** 2) / v if v > 0 else 0.0
+        return heading_kernel(a_perp, v, v_c)
     v = np.asarray(v, dtype=float)
     safe = np.where(v > 0, v, 1.0)
     rate = np.where(v > 0, a_perp * taper(safe, v_c) / safe, 0.0)
