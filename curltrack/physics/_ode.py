@@ -185,6 +185,17 @@ def _brentq(kind, edge, t_a, t_b, t_old, h, y_old, F, tmp):
 
 
 @njit(cache=True, nogil=True)
+def _stage(s, y, h, K, p, moving, spinning, tmp):
+    """Stage ``s`` of a step of size ``h`` from ``y``: K[s] = f(y + h sum_m A[s, m] K[m])."""
+    for j in range(y.shape[0]):
+        acc = 0.0
+        for m in range(s):
+            acc += K[m, j] * _A[s, m]
+        tmp[j] = y[j] + acc * h
+    _rhs(tmp, p, moving, spinning, K[s])
+
+
+@njit(cache=True, nogil=True)
 def _rms(v):
     s = 0.0
     for i in range(v.shape[0]):
@@ -257,12 +268,7 @@ def _integrate(p, z0, t0, t1, moving, spinning, ev_kind, ev_edge, rtol, atol):
             for j in range(n):
                 K[0, j] = f[j]
             for s in range(1, _NS):
-                for j in range(n):
-                    acc = 0.0
-                    for m in range(s):
-                        acc += K[m, j] * _A[s, m]
-                    tmp[j] = y[j] + acc * h
-                _rhs(tmp, p, moving, spinning, K[s])
+                _stage(s, y, h, K, p, moving, spinning, tmp)
             for j in range(n):
                 acc = 0.0
                 for m in range(_NS):
@@ -300,12 +306,7 @@ def _integrate(p, z0, t0, t1, moving, spinning, ev_kind, ev_edge, rtol, atol):
             break
         # dense output of the accepted step
         for s in range(_NS + 1, _NSX):
-            for j in range(n):
-                acc = 0.0
-                for m in range(s):
-                    acc += K[m, j] * _A[s, m]
-                tmp[j] = y[j] + acc * h
-            _rhs(tmp, p, moving, spinning, K[s])
+            _stage(s, y, h, K, p, moving, spinning, tmp)
         if n_steps == cap:
             cap *= 2
             ts2, y2, F2 = np.empty(cap + 1), np.empty((cap, n)), np.empty((cap, _NP, n))
