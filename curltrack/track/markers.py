@@ -60,6 +60,15 @@ _LOWRES_FIRST_MIN_PX = 480
 #: core against its own colour (:meth:`MarkerDetector._split_oversized`): the rock's
 #: whole top, ~130 marker areas (a 25 mm marker on a 0.29 m rock).
 _SPLIT_MAX_AREAS = 150.0
+#: :meth:`MarkerDetector.find_missing`: a missing marker is looked for between these
+#: multiples of its rig distance from a found marker at the ice's scale - the markers'
+#: parallax H / (H - h) is 1.02-1.2 for cameras 0.7-6 m over a 0.114 m rock, and the
+#: scale is read at the found marker (a lens and a tilt change it a few % across the
+#: rock) - at up to this many blobs, each at least this fraction of the marker colour's
+#: chroma off the annulus's median (averaged over a marker-sized box).
+_PARTNER_RING = (0.9, 1.3)
+_PARTNER_TRIES = 3
+_PARTNER_MIN_COVER = 0.1
 
 
 def lab_of_rgb(rgb) -> np.ndarray:
@@ -350,6 +359,97 @@ class MarkerDetector:
                 res = self._refine(image_bgr, None, (x0, y0), c_xy, c_area, i)
             if res is not None:
                 xy[i], sig[i], area[i], con[i] = res
+        missing = [self.rig.markers[i].color for i in range(M) if not np.isfinite(xy[i, 0])]
+        msg = f"marker(s) {', '.join(missing)} not found" if missing else ""
+        if not missing:
+            self._learn_area(float(np.median(area)))
+        return MarkerFrame(xy, sig, area, con, msg)
+
+    def find_missing(self, image_bgr: np.ndarray, mf: MarkerFrame,
+                     m_per_px: float) -> MarkerFrame:
+        """The markers a search missed, looked for where the rig's layout puts them from
+        the markers it found, given the image's scale there.
+
+        The classification of :meth:`detect` needs a marker's pixels to show more than
+        half of its rig colour's contrast against the background.  A small marker
+        smeared by the rock's motion and by the video's coarse chroma (a ~3 px marker at
+        640x360, 4:2:0, 0.6 Mbit/s) or recoloured by auto white balance (a phone: a cyan
+        marker on green-tinted ice) shows 30-50 %: found in no frame until the rock
+        slows, while its pixels still stand clearly off the granite.  Here each missing
+        marker is looked for only in the annulus where the layout puts it from every
+        found marker - the rig distance between them at ``m_per_px`` times the parallax
+        factor (:data:`_PARTNER_RING`) - as the strongest blobs of the marker's chroma
+        off the annulus's own median colour, and accepted only where the sub-pixel
+        refinement (:meth:`_refine`, with its contrast and chroma checks) converges
+        inside the annulus, at a size within a factor 2 of the found markers'.
+
+        Parameters
+        ----------
+        image_bgr : (H, W, 3) uint8
+        mf : MarkerFrame
+            What :meth:`detect` found (at least one marker).
+        m_per_px : float
+            Ice metres per image pixel at the found markers (m/px).
+
+        Returns
+        -------
+        MarkerFrame
+            ``mf`` with the markers found here filled in (its message updated).
+        """
+        import cv2
+
+        found = mf.found
+        M = len(found)
+        if found.all() or not found.any() or not (np.isfinite(m_per_px) and m_per_px > 0):
+            return mf
+        H, W = image_bgr.shape[:2]
+        xy, sig = mf.xy_px.copy(), mf.sigma_px.copy()
+        area, con = mf.area_px.copy(), mf.contrast.copy()
+        a_ref = float(median(area[found]))
+        r_mk = max(1.0, math.sqrt(a_ref / math.pi))
+        for i in np.flatnonzero(~found):
+            known = np.flatnonzero(np.isfinite(xy[:, 0]))
+            dist = (np.hypot(*(self.layout_m[known] - self.layout_m[i]).T) / m_per_px)
+            lo, hi = _PARTNER_RING[0] * dist, _PARTNER_RING[1] * dist
+            j = int(np.argmin(dist))  # (the nearest found marker bounds the window)
+            c = xy[known[j]]
+            x0, y0 = max(0, int(c[0] - hi[j] - 1)), max(0, int(c[1] - hi[j] - 1))
+            x1, y1 = min(W, int(c[0] + hi[j] + 2)), min(H, int(c[1] + hi[j] + 2))
+            if x1 - x0 < 4 or y1 - y0 < 4:
+                continue
+            win = image_bgr[y0:y1, x0:x1, ::-1].astype(np.float32)  # RGB
+            gy, gx = np.mgrid[y0:y1, x0:x1].astype(float)
+            ring = np.ones(win.shape[:2], bool)
+            for k, p in enumerate(xy[known]):
+                rr = np.hypot(gx - p[0], gy - p[1])
+                ring &= (rr >= lo[k]) & (rr <= hi[k])
+            if not ring.any():
+                continue
+            bg = median(win[ring].T, axis=1)
+            target = cv2.cvtColor(np.clip(self.colors_lab[i], 0, 255).astype(np.uint8)
+                                  .reshape(1, 1, 3), cv2.COLOR_Lab2RGB).reshape(3)
+            d = target.astype(float) - bg
+            d_c = d - d.mean()  # (its chroma: the granite's and the ice's greys do not count)
+            den = float(d_c @ d)
+            if den <= 0 or float(d_c @ d_c) < 1.0:
+                continue
+            cover = ((win - bg) @ (d_c / den)).astype(np.float32)
+            k_sz = 2 * int(round(r_mk)) + 1
+            score = cv2.blur(cover, (k_sz, k_sz))
+            score[~ring] = -np.inf
+            for _ in range(_PARTNER_TRIES):
+                v, u = np.unravel_index(int(np.argmax(score)), score.shape)
+                if not score[v, u] > _PARTNER_MIN_COVER:
+                    break
+                score[max(0, v - 2 * k_sz):v + 2 * k_sz + 1,
+                      max(0, u - 2 * k_sz):u + 2 * k_sz + 1] = -np.inf
+                res = self._refine(image_bgr, None, None, (x0 + u, y0 + v), a_ref, i)
+                if res is None:
+                    continue
+                rr = np.hypot(*(xy[known] - res[0]).T)
+                if (np.all((rr >= lo) & (rr <= hi)) and 0.5 < res[2] / a_ref < 2.0):
+                    xy[i], sig[i], area[i], con[i] = res
+                    break
         missing = [self.rig.markers[i].color for i in range(M) if not np.isfinite(xy[i, 0])]
         msg = f"marker(s) {', '.join(missing)} not found" if missing else ""
         if not missing:
