@@ -65,9 +65,9 @@ _SPLIT_MAX_AREAS = 150.0
 #: parallax H / (H - h) is 1.02-1.2 for cameras 0.7-6 m over a 0.114 m rock, and the
 #: scale is read at the found marker (a lens and a tilt change it a few % across the
 #: rock) - at up to this many blobs, each at least this fraction of the marker colour's
-#: chroma off the annulus's median (averaged over a marker-sized box).
+#: chroma off its surroundings (a marker-sized box against one three times as wide).
 _PARTNER_RING = (0.9, 1.3)
-_PARTNER_TRIES = 3
+_PARTNER_TRIES = 4
 _PARTNER_MIN_COVER = 0.1
 
 
@@ -378,8 +378,8 @@ class MarkerDetector:
         slows, while its pixels still stand clearly off the granite.  Here each missing
         marker is looked for only in the annulus where the layout puts it from every
         found marker - the rig distance between them at ``m_per_px`` times the parallax
-        factor (:data:`_PARTNER_RING`) - as the strongest blobs of the marker's chroma
-        off the annulus's own median colour, and accepted only where the sub-pixel
+        factor (:data:`_PARTNER_RING`) - as the strongest marker-sized blobs of the
+        marker's chroma off their surroundings, and accepted only where the sub-pixel
         refinement (:meth:`_refine`, with its contrast and chroma checks) converges
         inside the annulus, at a size within a factor 2 of the found markers'.
 
@@ -434,8 +434,10 @@ class MarkerDetector:
             if den <= 0 or float(d_c @ d_c) < 1.0:
                 continue
             cover = ((win - bg) @ (d_c / den)).astype(np.float32)
+            # a marker-sized blob against its surroundings (a box three times as wide):
+            # a stretch of tinted ice or granite in the annulus scores ~0
             k_sz = 2 * int(round(r_mk)) + 1
-            score = cv2.blur(cover, (k_sz, k_sz))
+            score = cv2.blur(cover, (k_sz, k_sz)) - cv2.blur(cover, (3 * k_sz, 3 * k_sz))
             score[~ring] = -np.inf
             for _ in range(_PARTNER_TRIES):
                 v, u = np.unravel_index(int(np.argmax(score)), score.shape)
