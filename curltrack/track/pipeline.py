@@ -188,6 +188,10 @@ class _Follower:
                 m = 1.3 * r + 20
                 mf = self.det.detect(image, predicted=pred, gate_px=r,
                                      roi=(c[0] - m, c[1] - m, c[0] + m + 1, c[1] + m + 1))
+            if not mf.found.all():
+                # markers fainter than the rig's colours allow (a small marker smeared at
+                # a low bitrate): as marker-sized blobs of their chroma where predicted
+                mf = self.det.find_missing(image, mf, predicted=pred)
         if mf.found.all():
             self.hist = (self.hist + [(frame, mf.xy_px.copy())])[-2:]
             self.lost = 0
@@ -198,8 +202,12 @@ class _Follower:
     def complete(self, image, frame, mf, m_per_px: float):
         """``mf`` with the markers :meth:`detect` missed looked for where the layout puts
         them from those it found (:meth:`MarkerDetector.find_missing`; ``m_per_px``:
-        ice metres per image px there), taken as this frame's markers when complete."""
-        mf = self.det.find_missing(image, mf, m_per_px)
+        ice metres per image px there) - and where predicted, when the last frames give
+        a prediction: the layout's distance alone leaves the direction open (a blob on
+        the far side of the rock at that distance turns the angle by tens of degrees) -
+        taken as this frame's markers when complete."""
+        pred = self.predicted(frame) if self.hist and self.lost <= 4 else None
+        mf = self.det.find_missing(image, mf, m_per_px, predicted=pred)
         if mf.found.all():
             self.hist = (self.hist + [(frame, mf.xy_px.copy())])[-2:]
             self.lost = 0
