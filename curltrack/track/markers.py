@@ -60,6 +60,17 @@ _LOWRES_FIRST_MIN_PX = 480
 #: core against its own colour (:meth:`MarkerDetector._split_oversized`): the rock's
 #: whole top, ~130 marker areas (a 25 mm marker on a 0.29 m rock).
 _SPLIT_MAX_AREAS = 150.0
+#: :meth:`MarkerDetector.find_missing`: a missing marker is looked for between these
+#: multiples of its rig distance from a found marker at the ice's scale - the markers'
+#: parallax H / (H - h) is 1.02-1.2 for cameras 0.7-6 m over a 0.114 m rock, and the
+#: scale is read at the found marker (a lens and a tilt change it a few % across the
+#: rock) - at up to this many blobs, each at least this fraction of the marker colour's
+#: chroma off its surroundings (a marker-sized box against one three times as wide).
+_PARTNER_RING = (0.9, 1.3)
+_PARTNER_TRIES = 4
+_PARTNER_MIN_COVER = 0.1
+#: ... and around a marker's prediction, within this many marker radii (+2 px).
+_PREDICTED_GATE = 3.0
 
 
 def lab_of_rgb(rgb) -> np.ndarray:
@@ -355,6 +366,129 @@ class MarkerDetector:
         if not missing:
             self._learn_area(float(np.median(area)))
         return MarkerFrame(xy, sig, area, con, msg)
+
+    def find_missing(self, image_bgr: np.ndarray, mf: MarkerFrame, m_per_px: float = np.nan,
+                     predicted: np.ndarray | None = None) -> MarkerFrame:
+        """The markers a search missed, looked for where the rig's layout puts them from
+        the markers it found (given the image's scale there), or where they were
+        predicted.
+
+        The classification of :meth:`detect` needs a marker's pixels to show more than
+        half of its rig colour's contrast against the background.  A small marker
+        smeared by the rock's motion and by the video's coarse chroma (a ~3 px marker at
+        640x360, 4:2:0, 0.6 Mbit/s) or recoloured by auto white balance (a phone: a cyan
+        marker on green-tinted ice) shows 30-50 %: found in no frame until the rock
+        slows, while its pixels still stand clearly off the granite.  Here each missing
+        marker is looked for only in the annulus where the layout puts it from every
+        found marker - the rig distance between them at ``m_per_px`` times the parallax
+        factor (:data:`_PARTNER_RING`) - and, with ``predicted``, within
+        :data:`_PREDICTED_GATE` marker radii of its prediction, as the strongest
+        marker-sized blobs of the marker's chroma off their surroundings; it is accepted
+        only where the sub-pixel refinement (:meth:`_refine`, with its contrast and
+        chroma checks) converges inside that region, at a size within a factor 2 of the
+        found markers' (or the learnt size).  Markers found around a prediction must
+        keep the predicted mutual distances (to 5 % + 1 px), as in :meth:`refine_at`.
+
+        Parameters
+        ----------
+        image_bgr : (H, W, 3) uint8
+        mf : MarkerFrame
+            What :meth:`detect` found.
+        m_per_px : float, optional
+            Ice metres per image pixel at the found markers (m/px); NaN: no annulus.
+        predicted : (M, 2) array, optional
+            Predicted centroids (observed image px).
+
+        Returns
+        -------
+        MarkerFrame
+            ``mf`` with the markers found here filled in (its message updated).
+        """
+        found = mf.found
+        M = len(found)
+        use_scale = bool(found.any() and np.isfinite(m_per_px) and m_per_px > 0)
+        use_pred = predicted is not None and bool(np.isfinite(predicted).all())
+        if found.all() or not (use_scale or use_pred):
+            return mf
+        a_ref = float(median(mf.area_px[found])) if found.any() else self.area_px
+        if a_ref is None or not a_ref > 0:
+            return mf
+        r_mk = max(1.0, math.sqrt(a_ref / math.pi))
+        xy, sig = mf.xy_px.copy(), mf.sigma_px.copy()
+        area, con = mf.area_px.copy(), mf.contrast.copy()
+        for i in np.flatnonzero(~found):
+            # the region: (centre px, inner and outer radius px) it must lie within
+            rings = []
+            if use_scale:
+                known = np.flatnonzero(np.isfinite(xy[:, 0]))
+                dist = np.hypot(*(self.layout_m[known] - self.layout_m[i]).T) / m_per_px
+                rings += [(xy[j], _PARTNER_RING[0] * d, _PARTNER_RING[1] * d)
+                          for j, d in zip(known, dist)]
+            if use_pred:
+                rings.append((predicted[i], 0.0, _PREDICTED_GATE * r_mk + 2.0))
+            res = self._blob_in(image_bgr, i, rings, a_ref, r_mk)
+            if res is not None:
+                xy[i], sig[i], area[i], con[i] = res
+        new = ~found & np.isfinite(xy[:, 0])
+        if use_pred and new.any():
+            for a, b in itertools.combinations(np.flatnonzero(np.isfinite(xy[:, 0])), 2):
+                d_now = np.hypot(*(xy[a] - xy[b]))
+                d_pred = np.hypot(*(predicted[a] - predicted[b]))
+                if abs(d_now - d_pred) > 0.05 * d_pred + 1.0:
+                    xy[new], sig[new], area[new], con[new] = np.nan, np.nan, 0.0, 0.0
+                    break
+        missing = [self.rig.markers[i].color for i in range(M) if not np.isfinite(xy[i, 0])]
+        msg = f"marker(s) {', '.join(missing)} not found" if missing else ""
+        if not missing:
+            self._learn_area(float(np.median(area)))
+        return MarkerFrame(xy, sig, area, con, msg)
+
+    def _blob_in(self, image_bgr, i, rings, a_ref: float, r_mk: float):
+        """Marker ``i`` as the strongest marker-sized blob of its chroma off its
+        surroundings inside every ring (centre px, r_lo, r_hi) - see :meth:`find_missing`:
+        (xy, sigma, area, contrast) from :meth:`_refine`, or None."""
+        import cv2
+
+        H, W = image_bgr.shape[:2]
+        c, _, hi = min(rings, key=lambda g: g[2])  # (the smallest bounds the window)
+        x0, y0 = max(0, int(c[0] - hi - 1)), max(0, int(c[1] - hi - 1))
+        x1, y1 = min(W, int(c[0] + hi + 2)), min(H, int(c[1] + hi + 2))
+        if x1 - x0 < 4 or y1 - y0 < 4:
+            return None
+        win = image_bgr[y0:y1, x0:x1, ::-1].astype(np.float32)  # RGB
+        gy, gx = np.mgrid[y0:y1, x0:x1].astype(float)
+        region = np.ones(win.shape[:2], bool)
+        for p, lo, hi in rings:
+            rr = np.hypot(gx - p[0], gy - p[1])
+            region &= (rr >= lo) & (rr <= hi)
+        if not region.any():
+            return None
+        bg = median(win[region].T, axis=1)
+        target = cv2.cvtColor(np.clip(self.colors_lab[i], 0, 255).astype(np.uint8)
+                              .reshape(1, 1, 3), cv2.COLOR_Lab2RGB).reshape(3)
+        d = target.astype(float) - bg
+        d_c = d - d.mean()  # (its chroma: the granite's and the ice's greys do not count)
+        den = float(d_c @ d)
+        if den <= 0 or float(d_c @ d_c) < 1.0:
+            return None
+        cover = ((win - bg) @ (d_c / den)).astype(np.float32)
+        # a marker-sized blob against its surroundings (a box three times as wide): a
+        # stretch of tinted ice or granite scores ~0
+        k_sz = 2 * int(round(r_mk)) + 1
+        score = cv2.blur(cover, (k_sz, k_sz)) - cv2.blur(cover, (3 * k_sz, 3 * k_sz))
+        score[~region] = -np.inf
+        for _ in range(_PARTNER_TRIES):
+            v, u = np.unravel_index(int(np.argmax(score)), score.shape)
+            if not score[v, u] > _PARTNER_MIN_COVER:
+                return None
+            score[max(0, v - 2 * k_sz):v + 2 * k_sz + 1,
+                  max(0, u - 2 * k_sz):u + 2 * k_sz + 1] = -np.inf
+            res = self._refine(image_bgr, None, None, (x0 + u, y0 + v), a_ref, i)
+            if res is None or not 0.5 < res[2] / a_ref < 2.0:
+                continue
+            if all(lo <= np.hypot(*(res[0] - p)) <= hi for p, lo, hi in rings):
+                return res
+        return None
 
     def _learn_area(self, area: float) -> None:
         """Fold one frame's marker area (px^2) into the running size (see area_ref_px)."""

@@ -50,6 +50,16 @@ FROZEN_MIN_CHANGE = 0.5
 FROZEN_HISTORY = 5
 #: The rock's outline (~1 ms a frame) is measured on about this many frames of a shot.
 OUTLINE_FRAMES = 40
+#: Before the grid is calibrated, with only some markers found (the others too faint
+#: for the rig's colours: :meth:`MarkerDetector.find_missing` needs the grid's scale),
+#: a calibration that fails on the whole frame is tried again without discs of this
+#: fraction of the image's short side around the found markers.  Unmasked, the rock's
+#: dark rim and handle - a large part of the image's centre at 640x360 - can outweigh
+#: faint threads there (a rendered 640x360 handheld clip at 0.57 Mbit/s: no lattice
+#: found in its first 28 frames, found in every one with the rock masked).  A quarter
+#: of the short side covers the rock's far edge from any marker (<= 0.25 m on the
+#: ice) while the view spans at least a metre across it.
+PARTIAL_MASK_FRACTION = 0.25
 
 
 #: A field is measured on an image of twice its lines (:func:`curltrack.video.field_image`):
@@ -178,12 +188,42 @@ class _Follower:
                 m = 1.3 * r + 20
                 mf = self.det.detect(image, predicted=pred, gate_px=r,
                                      roi=(c[0] - m, c[1] - m, c[0] + m + 1, c[1] + m + 1))
+            if not mf.found.all():
+                # markers fainter than the rig's colours allow (a small marker smeared at
+                # a low bitrate): as marker-sized blobs of their chroma where predicted
+                mf = self.det.find_missing(image, mf, predicted=pred)
         if mf.found.all():
             self.hist = (self.hist + [(frame, mf.xy_px.copy())])[-2:]
             self.lost = 0
         else:
             self.lost += 1
         return mf
+
+    def complete(self, image, frame, mf, m_per_px: float):
+        """``mf`` with the markers :meth:`detect` missed looked for where the layout puts
+        them from those it found (:meth:`MarkerDetector.find_missing`; ``m_per_px``:
+        ice metres per image px there) - and where predicted, when the last frames give
+        a prediction: the layout's distance alone leaves the direction open (a blob on
+        the far side of the rock at that distance turns the angle by tens of degrees) -
+        taken as this frame's markers when complete."""
+        pred = self.predicted(frame) if self.hist and self.lost <= 4 else None
+        mf = self.det.find_missing(image, mf, m_per_px, predicted=pred)
+        if mf.found.all():
+            self.hist = (self.hist + [(frame, mf.xy_px.copy())])[-2:]
+            self.lost = 0
+        return mf
+
+    def partial_mask(self, shape, mf):
+        """uint8 mask (nonzero = ignore) of discs of :data:`PARTIAL_MASK_FRACTION` of
+        the image's short side around the markers ``mf`` found, when not all were: the
+        rock somewhere around them, its size in px not known without the grid."""
+        import cv2
+
+        m = np.zeros(shape[:2], np.uint8)
+        rad = int(np.ceil(PARTIAL_MASK_FRACTION * min(shape[:2])))
+        for x, y in mf.xy_px[mf.found]:
+            cv2.circle(m, (int(round(x)), int(round(y))), rad, 255, -1)
+        return m
 
     def mask(self, shape, frame):
         """uint8 mask (nonzero = ignore) of the rock and its surroundings for the grid.
@@ -361,6 +401,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     markers_ice: list[tuple[int, np.ndarray]] = []  # last two measured (frame, (M, 2) m)
     rec_segment = 0  # grid segment of markers_ice
     frozen = _FrozenCheck()
+    last_H = None  # the last frame's homography (undistorted px -> lattice m)
     for fr in frames:
         rec = FrameRecord(fr.index, fr.t, field=fr.field)
         k = fr.sample  # running exposure index (frames, or fields of interlaced video)
@@ -378,6 +419,24 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
                 rec.markers_found = records[-2].markers_found
             continue
         mf = fol.detect(img, k)
+        pre_calib = None
+        if mf is not None and mf.found.any() and not mf.found.all():
+            # Some markers found, not all: the others are looked for where the layout
+            # puts them, at the grid's scale (this frame's calibration when there is none
+            # yet - with the rock's surroundings masked if it fails on the whole frame -
+            # else the last frame's homography: the camera moves little in a frame).
+            H_at = last_H
+            if tracker is None:
+                pre_calib = _calibrate(img, rig, None)
+                if pre_calib[0] is None:
+                    pre_calib = _calibrate(img, rig, fol.partial_mask(img.shape, mf))
+                H_at = None if pre_calib[0] is None else pre_calib[0].H
+            cal_at = calib if pre_calib is None else pre_calib[0]
+            if H_at is not None and cal_at is not None:
+                p = mf.xy_px[mf.found][0]
+                mpp = pixel_scale(apply_h(H_at, undistort(pixel_steps(p), cal_at.K,
+                                                          cal_at.dist)))
+                mf = fol.complete(img, k, mf, mpp)
         found = mf is not None and bool(mf.found.all())
         rec.markers_found = (tuple(bool(f) for f in mf.found) if mf is not None
                              else (False,) * len(L))
@@ -395,7 +454,10 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             # The grid is calibrated on the first frame where that works, with or without
             # the markers found (the rock then unmasked), and followed from there: a
             # frame is measurable as soon as its markers are found, as doctor judges it.
-            calib, calib_msg = _calibrate(img, rig, mask if found else None)
+            if pre_calib is not None and (pre_calib[0] is None or not found):
+                calib, calib_msg = pre_calib  # (the markers' search calibrated already)
+            else:
+                calib, calib_msg = _calibrate(img, rig, mask if found else None)
             if calib is None:
                 rec.grid_status = f"grid not found ({calib_msg})"
                 if found:
@@ -418,6 +480,8 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
                           calib.K, calib.dist)
             anchor = _anchor(markers_ice, q[:M], k, st.anchor_max_gap_frames * per_frame)
         pose = tracker.update(img, k, mask=mask, anchor=anchor)
+        if pose.ok:
+            last_H = pose.H
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px
         if not strict:  # (doctor's few frames: the pose whole; track keeps H only)

@@ -190,3 +190,39 @@ def test_wide_angle_action_clip_sigma_honest(tmp_path):
     assert rms <= 1.5e-3, (what, rms)
     z = float(np.std(np.r_[e[:, 0] / sig, e[:, 1] / sig]))
     assert z <= 1.4, f"{what}: std of position error/sigma {z:.2f} (pos RMS {1e3 * rms:.2f} mm)"
+
+
+def test_phone_clip_under_auto_exposure_measured_from_the_first_frames(tmp_path):
+    """Issue 19: a phone clip under auto exposure and white balance (a cyan marker on
+    green-tinted ice, ~40 % of its rig contrast) had one marker not found for its first
+    ~0.7-0.9 s (bench seed 20261124: frames 0-19 ok = 0, the origin extrapolated and
+    9 mm off).  The marker is now looked for where the layout puts it from the one
+    found: the clip is measured from its first frames, and no ok row is cm-off or far
+    outside its sigma.  (The 640x360 hand-held clips at a quarter bitrate are not held
+    here: their origin, a fit to frames ~3 mm off each, is 2-4 mm off under a ~1.5 mm
+    sigma - see the README's Known limitations.)"""
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        st = draw_setup(rng, "phone", 0.5)
+        if "auto_exposure" in st.summary["artefacts"]:
+            break
+    # (the faint marker alone: no broom over the rock, no person's shadow)
+    cfg = dataclasses.replace(st.config, occlusion=False, shadow=RenderConfig().shadow)
+    video = tmp_path / "phone.mp4"
+    try:
+        truth = render_video(st.shot, default_rig(), video, tmp_path / "truth.csv", cfg,
+                             seed=st.seed)
+    except CurltrackError as exc:  # (a phone's frame timing the writer refuses)
+        pytest.skip(f"seed {seed}: not renderable: {exc}")
+    readout_ms = 1e3 * float(truth.meta.get("readout_s") or 0.0)
+    what = f"seed {seed}: {st.summary}"
+    rig = dataclasses.replace(load_rig(video.with_suffix(".rig.toml")),
+                              rolling_shutter_ms=readout_ms or None)
+    series = track_video(video, rig)
+    e, sig, _, ok = _errors(series, truth)
+    err = np.hypot(*e.T)
+    assert ok.mean() >= 0.9, (what, ok.mean())
+    assert series.data.t.to_numpy()[ok].min() <= 0.1, (what, "first measured row late")
+    assert err.max() <= 10e-3, (what, err.max())
+    assert np.abs(e / sig[:, None]).max() <= 5.0, (what, np.abs(e / sig[:, None]).max())
