@@ -101,7 +101,7 @@ def _field_candidate(shots, baseline):
         location=[Param("wavelength_m", null=lams[0], lower=0.5 * lams[0],
                         upper=1.5 * lams[-1], unit="m", step=1e-3)],
         grid=[{"wavelength_m": v, "y_max_m": y_max} for v in lams],
-        extension=True, level=EXTENSION_LEVEL, n_starts=1,
+        extension=True, level=EXTENSION_LEVEL,
         note=f"friction varies periodically along the sheet; wavelength scanned "
              f"{lams[0]:.1f}-{lams[-1]:.1f} m ({len(lams)} values)")
 
