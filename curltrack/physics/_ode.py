@@ -51,8 +51,9 @@ _heading = _jit(_terms.heading_kernel)
 
 # SciPy's DOP853 tableau
 _NS, _NSX, _NP = _dop.N_STAGES, _dop.N_STAGES_EXTENDED, _dop.INTERPOLATOR_POWER
-_A, _B, _C = np.ascontiguousarray(_dop.A), np.ascontiguousarray(_dop.B), np.ascontiguousarray(_dop.C)
-_E3, _E5, _D = np.ascontiguousarray(_dop.E3), np.ascontiguousarray(_dop.E5), np.ascontiguousarray(_dop.D)
+# (its C is not needed: the right-hand side does not depend on t)
+_A, _B, _E3, _E5, _D = (np.ascontiguousarray(a) for a in (_dop.A, _dop.B, _dop.E3, _dop.E5,
+                                                           _dop.D))
 _SAFETY, _MIN_STEP_FACTOR, _MAX_STEP_FACTOR = 0.9, 0.2, 10.0
 _ERR_EXPONENT = -1.0 / 8.0          # DOP853's error estimator is of order 7
 _EPS = np.finfo(float).eps
@@ -125,6 +126,20 @@ def _dense_eval(t, t_old, h, y_old, F, out):
             acc += F[_NP - 1 - i, j]
             acc *= x if i % 2 == 0 else 1.0 - x
         out[j] = acc + y_old[j]
+
+
+@njit(cache=True, nogil=True)
+def _dense_many(t, ts, y_olds, Fs):
+    """:func:`_dense_eval` at each of the times ``t``, each on its step's interpolant
+    (SciPy's OdeSolution: the step whose start is the last one before t): (6, len(t))."""
+    out = np.empty((6, t.shape[0]))
+    row = np.empty(6)
+    last = y_olds.shape[0] - 1
+    for k in range(t.shape[0]):
+        i = min(max(np.searchsorted(ts, t[k]) - 1, 0), last)
+        _dense_eval(t[k], ts[i], ts[i + 1] - ts[i], y_olds[i], Fs[i], row)
+        out[:, k] = row
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -360,16 +375,7 @@ class DenseSolution:
 
     def __call__(self, t):
         """State columns (6, len(t)) at times ``t`` within the piece."""
-        t = np.asarray(t, dtype=float)
-        i = np.clip(np.searchsorted(self.ts, t, side="left") - 1, 0, len(self.y_olds) - 1)
-        h = self.ts[i + 1] - self.ts[i]
-        x = ((t - self.ts[i]) / h)[:, None]
-        F = self.Fs[i]
-        y = np.zeros((t.shape[0], 6))
-        for k in range(_NP):
-            y += F[:, _NP - 1 - k]
-            y *= x if k % 2 == 0 else 1.0 - x
-        return (y + self.y_olds[i]).T
+        return _dense_many(np.asarray(t, dtype=float), self.ts, self.y_olds, self.Fs)
 
 
 class OdeSegment:
@@ -388,6 +394,14 @@ class OdeSegment:
         self.t_stop_rotation = t0 if w0 == 0 else math.inf
         self.pieces = []  # (ta, tb, dense solution or constant state, moving, spinning)
         self._solve(t0, z0)
+
+    def patch_factor_at(self, z, moving: bool) -> float:
+        """Friction factor of the patch a piece starting at state ``z`` runs in: the
+        side of an edge the rock is heading into."""
+        if not self.terms.patches:
+            return 1.0
+        heading_y = math.cos(z[3]) if moving else 0.0
+        return float(patch_factor(z[1] + 1e-9 * heading_y, self.terms.patches))
 
     def _params(self, f: float) -> np.ndarray:
         """The kernel's parameter vector for a piece of friction factor ``f`` (the patch
@@ -420,12 +434,9 @@ class OdeSegment:
                         kinds.append(2); edges.append(e)
             if spinning:
                 kinds.append(1); edges.append(0.0)
-            f = 1.0
-            if self.terms.patches:  # the side of the edge the rock is heading into
-                heading_y = math.cos(z[3]) if moving else 0.0
-                f = float(patch_factor(z[1] + 1e-9 * heading_y, self.terms.patches))
             ts, y_olds, Fs, t_new, z_new, status, event = _integrate(
-                self._params(f), np.asarray(z, dtype=float), float(t), float(self.t1),
+                self._params(self.patch_factor_at(z, moving)), np.asarray(z, dtype=float),
+                float(t), float(self.t1),
                 moving, spinning, np.array(kinds, dtype=np.int64), np.array(edges),
                 rtol, atol)
             if status == -1:

@@ -103,9 +103,9 @@ class Extension(NamedTuple):
                 float(self.law is not None), dphi, u_k, u_f)
 
 
-# Scalar kernels: plain ``math`` on floats, so that the ODE's right-hand side
-# (:mod:`._ode`) can compile these same functions; the array functions below call them
-# for scalars.
+# Scalar kernels: plain ``math`` on floats (the arithmetic ones broadcast over arrays
+# too), so that the ODE's right-hand side (:mod:`._ode`) can compile these same
+# functions; the array functions below call them.
 
 def field_gain(y, k, a, b):
     """Friction multiplier 1 + a cos(k y) + b sin(k y) of a periodic field at ``y`` (m),
@@ -125,13 +125,14 @@ def curl_gain(omega_abs, p, w_ref, w_min):
 
 
 def speed_law_kernel(u, dphi, u_knee, u_floor):
-    """:func:`speed_law_gain` of one float."""
+    """:func:`speed_law_gain` of a float (or an array)."""
     u2 = u * u
     return ((u2 + u_knee * u_knee) / (u2 + u_floor * u_floor)) ** (0.5 * dphi)
 
 
 def transverse_kernel(v, k, v_ref, v_min):
-    """:func:`transverse_gain` of one float with a gain term ``(k, v_ref, v_min)``."""
+    """:func:`transverse_gain` of a float (or an array) with a gain term
+    ``(k, v_ref, v_min)``."""
     return ((v * v + v_min * v_min) / (v_ref * v_ref)) ** (-0.5 * k)
 
 
@@ -148,10 +149,8 @@ def speed_law_gain(u, dphi: float, u_knee: float, u_floor: float):
     bounded by (u_knee/u_floor)^dphi as u -> 0, so the rock still stops in finite time
     and the equations stay smooth.  ``u`` in m/s (scalar or array).
     """
-    if isinstance(u, float):
-        return speed_law_kernel(u, dphi, u_knee, u_floor)
-    u2 = np.square(np.asarray(u, dtype=float))
-    return ((u2 + u_knee * u_knee) / (u2 + u_floor * u_floor)) ** (0.5 * dphi)
+    return speed_law_kernel(u if isinstance(u, float) else np.asarray(u, dtype=float),
+                            dphi, u_knee, u_floor)
 
 
 def slope_acceleration(slope_mm_per_m: float, g: float = G) -> float:
@@ -176,10 +175,7 @@ def transverse_gain(v, late_curl):
     """
     if late_curl is None:
         return np.ones_like(v) if isinstance(v, np.ndarray) else 1.0
-    k, v_ref, v_min = late_curl
-    if isinstance(v, float):
-        return transverse_kernel(v, k, v_ref, v_min)
-    return ((v * v * 1.0 + v_min * v_min) / (v_ref * v_ref)) ** (-0.5 * k)
+    return transverse_kernel(v, *late_curl)
 
 
 def taper(v, v_c: float):

@@ -55,8 +55,8 @@ def test_kernel_is_scipy_dop853(draw):
     seg = _ode.OdeSegment(model, terms, 0.0, (0, 0, 0, model.v0, 0, model.omega0), 40.0)
     # every piece of the segment, re-integrated by SciPy from the piece's own start
     for ta, tb, sol, moving, spinning in seg.pieces[:-1]:
-        p = seg._params(_piece_factor(seg, sol, ta, moving))
         z0 = sol(np.array([ta]))[:, 0]
+        p = seg._params(seg.patch_factor_at(z0, moving))
 
         def rhs(t, z, p=p, moving=moving, spinning=spinning):
             out = np.empty(6)
@@ -83,17 +83,6 @@ def test_kernel_is_scipy_dop853(draw):
         t = np.sort(rng.uniform(ta, min(tb, ref.t[-1]), 50))
         np.testing.assert_allclose(sol(t), ref.sol(t), rtol=1e-8, atol=1e-9,
                                    err_msg=f"seed {seed}")
-
-
-def _piece_factor(seg, sol, ta, moving):
-    """The friction factor OdeSegment gave the piece (the patch it runs in)."""
-    if not seg.terms.patches:
-        return 1.0
-    from curltrack.physics.terms import patch_factor
-
-    z = sol(np.array([ta]))[:, 0]
-    heading_y = np.cos(z[3]) if moving else 0.0
-    return float(patch_factor(z[1] + 1e-9 * heading_y, seg.terms.patches))
 
 
 def test_kernel_stops_on_a_right_hand_side_that_is_not_a_number():
