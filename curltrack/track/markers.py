@@ -73,6 +73,16 @@ _PARTNER_MIN_COVER = 0.1
 _PREDICTED_GATE = 3.0
 
 
+def _keeps_distances(xy, predicted, idx, rel: float) -> bool:
+    """Whether the markers ``idx`` keep their predicted mutual distances (px) to
+    ``rel`` of each plus 1 px."""
+    for a, b in itertools.combinations(idx, 2):
+        d_pred = np.hypot(*(predicted[a] - predicted[b]))
+        if abs(np.hypot(*(xy[a] - xy[b])) - d_pred) > rel * d_pred + 1.0:
+            return False
+    return True
+
+
 def lab_of_rgb(rgb) -> np.ndarray:
     """(R, G, B) 0-255 -> OpenCV 8-bit Lab (float), the space used for classifying;
     any leading shape, ``(..., 3)``."""
@@ -284,12 +294,9 @@ class MarkerDetector:
                 self.colors_lab = saved
                 return None
             xy[i], sig[i], area[i], con[i] = res
-        for a, b in itertools.combinations(range(M), 2):
-            d_now = np.hypot(*(xy[a] - xy[b]))
-            d_pred = np.hypot(*(predicted[a] - predicted[b]))
-            if abs(d_now - d_pred) > 0.03 * d_pred + 1.0:
-                self.colors_lab = saved
-                return None
+        if not _keeps_distances(xy, predicted, range(M), 0.03):
+            self.colors_lab = saved
+            return None
         self._learn_area(float(median(area)))
         return MarkerFrame(xy, sig, area, con, "")
 
@@ -361,11 +368,7 @@ class MarkerDetector:
                 res = self._refine(image_bgr, None, (x0, y0), c_xy, c_area, i)
             if res is not None:
                 xy[i], sig[i], area[i], con[i] = res
-        missing = [self.rig.markers[i].color for i in range(M) if not np.isfinite(xy[i, 0])]
-        msg = f"marker(s) {', '.join(missing)} not found" if missing else ""
-        if not missing:
-            self._learn_area(float(np.median(area)))
-        return MarkerFrame(xy, sig, area, con, msg)
+        return self._frame(xy, sig, area, con)
 
     def find_missing(self, image_bgr: np.ndarray, mf: MarkerFrame, m_per_px: float = np.nan,
                      predicted: np.ndarray | None = None) -> MarkerFrame:
@@ -405,7 +408,6 @@ class MarkerDetector:
             ``mf`` with the markers found here filled in (its message updated).
         """
         found = mf.found
-        M = len(found)
         use_scale = bool(found.any() and np.isfinite(m_per_px) and m_per_px > 0)
         use_pred = predicted is not None and bool(np.isfinite(predicted).all())
         if found.all() or not (use_scale or use_pred):
@@ -431,17 +433,9 @@ class MarkerDetector:
                 xy[i], sig[i], area[i], con[i] = res
         new = ~found & np.isfinite(xy[:, 0])
         if use_pred and new.any():
-            for a, b in itertools.combinations(np.flatnonzero(np.isfinite(xy[:, 0])), 2):
-                d_now = np.hypot(*(xy[a] - xy[b]))
-                d_pred = np.hypot(*(predicted[a] - predicted[b]))
-                if abs(d_now - d_pred) > 0.05 * d_pred + 1.0:
-                    xy[new], sig[new], area[new], con[new] = np.nan, np.nan, 0.0, 0.0
-                    break
-        missing = [self.rig.markers[i].color for i in range(M) if not np.isfinite(xy[i, 0])]
-        msg = f"marker(s) {', '.join(missing)} not found" if missing else ""
-        if not missing:
-            self._learn_area(float(np.median(area)))
-        return MarkerFrame(xy, sig, area, con, msg)
+            if not _keeps_distances(xy, predicted, np.flatnonzero(np.isfinite(xy[:, 0])), 0.05):
+                xy[new], sig[new], area[new], con[new] = np.nan, np.nan, 0.0, 0.0
+        return self._frame(xy, sig, area, con)
 
     def _blob_in(self, image_bgr, i, rings, a_ref: float, r_mk: float):
         """Marker ``i`` as the strongest marker-sized blob of its chroma off its
@@ -489,6 +483,15 @@ class MarkerDetector:
             if all(lo <= np.hypot(*(res[0] - p)) <= hi for p, lo, hi in rings):
                 return res
         return None
+
+    def _frame(self, xy, sig, area, con) -> MarkerFrame:
+        """A search's MarkerFrame: the missing markers named in its message, the running
+        marker size learnt from a complete one."""
+        missing = [self.rig.markers[i].color for i in range(len(xy)) if not np.isfinite(xy[i, 0])]
+        msg = f"marker(s) {', '.join(missing)} not found" if missing else ""
+        if not missing:
+            self._learn_area(float(np.median(area)))
+        return MarkerFrame(xy, sig, area, con, msg)
 
     def _learn_area(self, area: float) -> None:
         """Fold one frame's marker area (px^2) into the running size (see area_ref_px)."""
