@@ -304,3 +304,53 @@ def residual_structure(w, t) -> tuple[float, float]:
     var = float(np.mean(hp * hp)) / (1.0 - 1.0 / win)
     tau = infl / var if var > 0 else 1.0
     return float(max(1.0, infl)), float(np.clip(tau, 1.0, L))
+
+
+#: a row whose residual stands this many robust sigma off the running median of its
+#: neighbours is an isolated outlier (a Gaussian error does that once in ~5e8 rows; an
+#: instrument's glitch or a mistracked frame far more often)
+OUTLIER_K = 6.0
+#: rows each side of the running median: misfits and step-like errors that hold for
+#: 3 or more rows move the median with them and are never taken for outliers
+OUTLIER_HALF_WINDOW = 2
+#: robust sigma of (white Gaussian noise - its running median of 5) over the noise's
+#: sigma (1e6 rows): the median shares each row's own value, which narrows the core of
+#: the differences but not their tails, so their robust sigma is divided by this
+_MEDIAN5_SPREAD = 0.728
+
+
+def isolated_outliers(r, k: float = OUTLIER_K) -> np.ndarray:
+    """Rows of ``r`` that are isolated outliers: far from their neighbours, alone.
+
+    Heavy-tailed errors (rare glitches of 10 sigma and more) weigh on every chi-square
+    and on the window sums :func:`residual_structure` measures the noise with; a smooth
+    misfit (any effect of the physics) or an instrument's step that holds for a few
+    samples does not look like them.  A row is an outlier when its residual differs from
+    the running median of the ``2 OUTLIER_HALF_WINDOW + 1`` rows around it by more than
+    ``k`` sigma of the noise: the rows' own (the residuals are in units of the noise
+    :func:`estimate_noise` measured), or more if the differences' robust spread says
+    so - not less, since on a steep trend the running median is the row itself and the
+    differences vanish.  Correlated noise is followed by the median, which makes the
+    test only more conservative.
+
+    Parameters
+    ----------
+    r : array
+        Residuals (data - model) of one coordinate in units of the rows' noise sigma,
+        in time order.
+    k : float
+        Threshold in robust sigma.
+
+    Returns
+    -------
+    ndarray of bool
+        True at the outlier rows.
+    """
+    from scipy.ndimage import median_filter
+
+    r = np.asarray(r, dtype=float)
+    if r.size < 4 * OUTLIER_HALF_WINDOW + 1:
+        return np.zeros(r.size, bool)
+    d = r - median_filter(r, size=2 * OUTLIER_HALF_WINDOW + 1, mode="mirror")
+    scale = max(robust_sigma(d) / _MEDIAN5_SPREAD, 1.0)
+    return np.abs(d) > k * scale

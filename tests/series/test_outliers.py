@@ -1,0 +1,61 @@
+"""Isolated outliers (curltrack.series.noise.isolated_outliers): glitches found, noise,
+misfits and an instrument's steps never taken for them.  Draws are random; the seed is
+in every assertion message."""
+
+import numpy as np
+
+from curltrack.instrument import draw_noise
+from curltrack.series.noise import isolated_outliers
+
+
+def _seed() -> int:
+    return int(np.random.SeedSequence().entropy % (1 << 63))
+
+
+def test_gaussian_noise_has_no_outliers():
+    seed = _seed()
+    rng = np.random.default_rng(seed)
+    sizes = rng.integers(50, 2000, 200)
+    flagged = sum(int(isolated_outliers(rng.normal(size=int(n))).sum()) for n in sizes)
+    # a Gaussian row is flagged when it is ~5 sigma off and its neighbours lean the other
+    # way: measured ~1e-7 per row (0 in 2e7; 2 in ~2.5e6): dropping one costs nothing,
+    # but more than 1e-5 of them would mean the scale is wrong
+    assert flagged <= 1e-5 * sizes.sum(), f"seed {seed}: {flagged} Gaussian rows flagged"
+
+
+def test_glitches_found_smooth_misfits_and_steps_kept():
+    seed = _seed()
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        n = int(rng.integers(100, 900))
+        t = np.arange(n) / float(rng.choice([10.0, 30.0, 60.0]))
+        r = rng.normal(size=n)
+        # a smooth misfit many sigma high (a missing effect), and a kink (a pick's
+        # velocity jump left to the baseline: up to 0.5 sigma per row, e.g. 1 cm/s at
+        # 10 Hz under 2 mm noise)
+        r += rng.uniform(3, 20) * np.exp(-0.5 * ((t - rng.uniform(0, t[-1])) / rng.uniform(1, 3)) ** 2)
+        r += rng.uniform(0.05, 0.5) * np.maximum(np.arange(n) - rng.uniform(0, n), 0)
+        # an instrument's step that holds for >= 3 rows (and leaves >= 3 on each side: a
+        # lone first row before a step is a glitch by every measure)
+        i0 = int(rng.integers(3, n - 13))
+        r[i0:i0 + int(rng.integers(3, 10))] += rng.choice([-1, 1]) * rng.uniform(10, 40)
+        # isolated glitches: >= 3 rows from each other and from the step
+        glitch = np.sort(rng.choice(n, size=max(1, n // 100), replace=False))
+        glitch = glitch[np.r_[True, np.diff(glitch) >= 3]]
+        glitch = glitch[np.abs(glitch[:, None] - np.arange(i0 - 3, i0 + 13)).min(1) > 0]
+        r[glitch] += rng.choice([-1, 1], glitch.size) * rng.uniform(12, 30, glitch.size)
+        found = isolated_outliers(r)
+        assert found[glitch].all(), f"seed {seed}: glitches missed at {glitch[~found[glitch]]}"
+        others = np.setdiff1d(np.flatnonzero(found), glitch)
+        assert others.size == 0, f"seed {seed}: rows {others} flagged (no glitch there)"
+
+
+def test_heavy_tailed_class_outliers_flagged_at_their_rate():
+    """The heavy noise class (Student t3 + 1 % at 10 sigma): about its 1 % of glitches
+    plus the t3 tail beyond 6 robust sigma (~0.5 %) are flagged - not the bulk."""
+    seed = _seed()
+    rng = np.random.default_rng(seed)
+    t = np.arange(20000) / 30.0
+    r = draw_noise("heavy", t, 1.0, rng)
+    frac = isolated_outliers(r).mean()
+    assert 0.008 < frac < 0.03, f"seed {seed}: {frac:.4f} flagged"
