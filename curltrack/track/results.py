@@ -317,13 +317,18 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                                         + (SIGMA_MISFIT_SCALE * sig_r) ** 2 + sig_misfit ** 2),
                         sigma_parallax)
     if shot["origin_sigma_m"] > st.max_origin_sigma_m:
-        raise TrackingError(f"the first measured frame is at t = {t[ok][0]:.2f} s and the "
-                            "origin (the rock at t = 0) cannot be extrapolated back to it "
-                            f"better than ~{1e3 * shot['origin_sigma_m']:.0f} mm: give "
+        how = (f"the first measured frame is at t = {t[ok][0]:.2f} s and the origin (the "
+               "rock at t = 0) cannot be extrapolated back to it" if shot["origin_extrapolated"]
+               else "the first measured frames disagree: the origin (the rock at t = 0) "
+               "cannot be placed from them")
+        raise TrackingError(f"{how} better than ~{1e3 * shot['origin_sigma_m']:.0f} mm: give "
                             "--start-frame at a frame where the rock and the grid are "
                             "seen", path=path, where=f"frames 0-{frame[ok][0]}")
+    # the origin's error is every row's (a fit to the first frames, extrapolated or not);
+    # a frame's own sigma (sigma_own) is what tells a doubtful frame, below
+    sigma_own = sigma_xy
     sigma_xy = np.hypot(sigma_xy, shot["origin_sigma_m"])
-    if shot["origin_sigma_m"] > 1e-3:
+    if shot["origin_extrapolated"] and shot["origin_sigma_m"] > 1e-3:
         warnings.append(f"{path}: the first measured frame is at t = {t[ok][0]:.2f} s: the "
                         "origin (the rock at t = 0) is extrapolated back to it, uncertain by "
                         f"~{1e3 * shot['origin_sigma_m']:.0f} mm (included in sigma_xy)")
@@ -343,11 +348,11 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # a frame whose own fit is far less sure than the video's others is not measured
     # (frames measured from a user's clicks carry the click precision: theirs to judge)
     clicked = np.array([r.clicked for r in records], bool)
-    sure = ok & np.isfinite(sigma_xy)
+    sure = ok & np.isfinite(sigma_own)
     if sure.sum() >= st.min_measured_frames:
-        typical = float(np.median(sigma_xy[sure & ~clicked] if (sure & ~clicked).any()
-                                  else sigma_xy[sure]))
-        unsure = sure & ~clicked & (sigma_xy > st.sigma_outlier_factor * typical)
+        typical = float(np.median(sigma_own[sure & ~clicked] if (sure & ~clicked).any()
+                                  else sigma_own[sure]))
+        unsure = sure & ~clicked & (sigma_own > st.sigma_outlier_factor * typical)
         for i in np.flatnonzero(unsure):
             records[i].status = (f"uncertain: sigma_xy over {st.sigma_outlier_factor:g}x the "
                                  f"video's typical {1e3 * typical:.1f} mm (a doubtful grid "
