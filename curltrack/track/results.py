@@ -333,6 +333,13 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                         "origin (the rock at t = 0) is extrapolated back to it, uncertain by "
                         f"~{1e3 * shot['origin_sigma_m']:.0f} mm (included in sigma_xy)")
     sigma_theta = np.hypot(sig_m / max(lever, 1e-6), shot["theta0_sigma_rad"])
+    if shot["theta_unsure"].any():
+        # an angle off by an unknown whole turn is not given (contract: x, y kept)
+        sigma_theta = np.where(shot["theta_unsure"], np.nan, sigma_theta)
+        warnings.append(f"{path}: frame(s) {frame_ranges(frame[shot['theta_unsure']])}: "
+                        "the rock's turns across a gap of unmeasured frames cannot be "
+                        "counted for certain from the spin on either side: theta left "
+                        "empty (x, y kept)")
     if any(r.field is not None for r in records):
         # the two fields disagree systematically (mis-registration, aliasing, chroma):
         # half their offset is an error of every row that the pixel noise does not show

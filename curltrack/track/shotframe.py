@@ -42,9 +42,57 @@ MAX_ANGULAR_DECELERATION = 1.5
 EXTRAPOLATION_RAD_S3 = EXTRAPOLATION_M_S3 / 0.14
 
 
-def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """Cumulative angle from wrapped angles, robust to gaps: each step takes the 2 pi
-    branch nearest the prediction from the last angular velocity.
+#: A gap: a step between measured frames longer than this many typical frame steps.
+GAP_STEPS = 1.5
+#: The spin rate each side of a gap is the slope of a line through up to this many
+#: measured frames within :data:`RATE_SPAN_S` of the gap.
+RATE_FRAMES = 6
+RATE_SPAN_S = 0.3
+#: A gap's turn count is taken as certain when the nearest branch is closer to the
+#: predicted angle than the next by at least twice this many sigmas of the prediction
+#: (the measured angle |r| from it: |r| + Z sigma < pi).
+TURN_Z = 3.0
+
+
+def _angle_noise(t, cum, runs) -> float:
+    """1 sigma (rad) of one frame's angle: second differences within runs of
+    consecutive frames (robust; floor :data:`MIN_SCATTER_RAD`)."""
+    d2 = [np.diff(cum[i:j], 2) for i, j in runs if j - i >= 3]
+    d2 = np.concatenate(d2) if d2 else np.empty(0)
+    return max(robust_sigma(d2) / np.sqrt(6.0) if d2.size >= 3 else 0.0, MIN_SCATTER_RAD)
+
+
+def _edge_rate(t, cum, noise, before: bool):
+    """(rate rad/s, its 1 sigma, the time it is the rate at) from a line through up to
+    :data:`RATE_FRAMES` frames within :data:`RATE_SPAN_S` of one end of ``t``; None from
+    fewer than two frames."""
+    sel = (t >= t[-1] - RATE_SPAN_S) if before else (t <= t[0] + RATE_SPAN_S)
+    tk, qk = t[sel], cum[sel]
+    tk, qk = (tk[-RATE_FRAMES:], qk[-RATE_FRAMES:]) if before else (tk[:RATE_FRAMES],
+                                                                    qk[:RATE_FRAMES])
+    if tk.size < 2:
+        return None
+    tc = tk - tk.mean()
+    sxx = float(tc @ tc)
+    return float(tc @ qk) / sxx, noise / np.sqrt(sxx), float(tk.mean())
+
+
+def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cumulative angle from wrapped angles, and whether each one's turn count is sure.
+
+    Within a run of consecutive frames each step takes the 2 pi branch nearest the
+    prediction from the last angular velocity.  Across a gap (a step longer than
+    :data:`GAP_STEPS` typical steps) the angle is predicted from the spin rates
+    measured on both sides (linear fits near the gap; the rate taken as changing
+    linearly between them, so exact at a constant angular deceleration) or, with
+    frames on one side only, from the rate before it and a deceleration of up to
+    :data:`MAX_ANGULAR_DECELERATION`.  The prediction's 1 sigma holds the rates'
+    errors (from the frames' own angle noise), the two ends' noise and the rate's
+    unknown course between them (a monotone rate: anywhere between its two ends'
+    values, taken as uniform).  When the nearest branch does not win by
+    :data:`TURN_Z` of that sigma (|r| + Z sigma >= pi, r the measured angle's offset
+    from the prediction), the turn count across the gap is not certain: that row and
+    every later one are flagged (their angle is off by an unknown whole turn).
 
     Parameters
     ----------
@@ -52,18 +100,54 @@ def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> np.ndarray:
         Times (s), increasing, no NaN.
     phi : (N,) array
         Angles (rad), any branch.
+
+    Returns
+    -------
+    (theta, sure) : (N,) float array (rad), (N,) bool array
     """
+    t = np.asarray(t, float)
     out = np.empty_like(phi, dtype=float)
+    sure = np.ones(phi.size, bool)
     if phi.size == 0:
-        return out
-    out[0] = phi[0]
-    omega = 0.0
-    for i in range(1, phi.size):
-        pred = out[i - 1] + omega * (t[i] - t[i - 1])
-        out[i] = phi[i] + 2 * np.pi * np.round((pred - phi[i]) / (2 * np.pi))
-        if t[i] > t[i - 1]:
-            omega = (out[i] - out[i - 1]) / (t[i] - t[i - 1])
-    return out
+        return out, sure
+    step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    gap = np.r_[False, np.diff(t) > GAP_STEPS * step]
+    starts = np.flatnonzero(np.r_[True, gap[1:]])
+    runs = list(zip(starts, np.r_[starts[1:], phi.size]))
+    for i, j in runs:  # each run on its own first (consecutive frames: one-step rate)
+        out[i] = phi[i]
+        omega = 0.0
+        for k in range(i + 1, j):
+            pred = out[k - 1] + omega * (t[k] - t[k - 1])
+            out[k] = phi[k] + 2 * np.pi * np.round((pred - phi[k]) / (2 * np.pi))
+            if t[k] > t[k - 1]:
+                omega = (out[k] - out[k - 1]) / (t[k] - t[k - 1])
+    noise = _angle_noise(t, out, runs)
+    for (i, j), (k, m) in zip(runs[:-1], runs[1:]):  # then each gap, left to right
+        ta, tb = t[j - 1], t[k]
+        dt = tb - ta
+        a = _edge_rate(t[:j], out[:j], noise, before=True)
+        b = _edge_rate(t[k:m], out[k:m], noise, before=False)
+        mid = 0.5 * (ta + tb)
+        if a is None and b is None:
+            pred, sig = out[j - 1], np.inf
+        elif a is not None and b is not None:
+            lam = (mid - a[2]) / max(b[2] - a[2], 1e-9)
+            rate = (1 - lam) * a[0] + lam * b[0]
+            pred = out[j - 1] + rate * dt
+            sig = np.sqrt(dt ** 2 * ((1 - lam) ** 2 * a[1] ** 2 + lam ** 2 * b[1] ** 2)
+                          + (abs(a[0] - b[0]) * dt / 2.0) ** 2 / 3.0)
+        else:
+            (w, sw, tw) = a if a is not None else b
+            pred = out[j - 1] + w * dt
+            sig = np.sqrt((sw * dt) ** 2
+                          + (MAX_ANGULAR_DECELERATION * abs(mid - tw) * dt) ** 2 / 3.0)
+        sig = float(np.hypot(sig, np.sqrt(2.0) * noise))
+        turns = np.round((pred - out[k]) / (2 * np.pi))
+        out[k:m] += 2 * np.pi * turns
+        if abs(out[k] - pred) + TURN_Z * sig >= np.pi:
+            sure[k:] = False
+    return out, sure
 
 
 def _window_fit(t, q, window_s: float = 0.8, min_points: int = 8):
@@ -222,7 +306,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     Returns
     -------
     dict
-        ``x``, ``y``, ``theta`` (N,) with NaN where not ok; ``origin`` (2,) and
+        ``x``, ``y``, ``theta`` (N,) with NaN where not ok (``theta`` also where its
+        turn count is not certain: ``theta_unsure`` (N,) bool, :func:`unwrap_angle`); ``origin`` (2,) and
         ``x_hat``, ``y_hat`` (lattice-frame unit vectors), ``theta0`` (rad),
         ``direction_source`` ("travel" or "image up"), ``origin_sigma_m``: the origin's
         1 sigma per coordinate (m: its fit's error, plus the extrapolation back to t = 0
@@ -234,7 +319,7 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     ok = np.asarray(ok, bool)
     idx = np.flatnonzero(ok)
     tt, cc = t[idx], centre[idx]
-    th = unwrap_angle(tt, phi[idx])
+    th, th_sure = unwrap_angle(tt, phi[idx])
     (x0, y0, th0), (vx, vy, _) = initial_state(tt, np.column_stack([cc, th]))
     origin = np.array([x0, y0])
     disp = cc - origin
@@ -254,7 +339,7 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     y = np.full(t.shape, np.nan)
     theta = np.full(t.shape, np.nan)
     x[idx], y[idx] = disp @ x_hat, disp @ y_hat
-    theta[idx] = th - th0
+    theta[idx] = np.where(th_sure, th - th0, np.nan)
     # (late: after half a frame - a rolling shutter times the first frame's row a
     # fraction of a millisecond after t = 0, which extrapolates nothing)
     late = tt.size > 0 and tt[0] > 0 and (
@@ -270,4 +355,5 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
             "origin_sigma_m": float(origin_sigma), "origin_extrapolated": bool(late),
+            "theta_unsure": np.isin(np.arange(t.size), idx[~th_sure]),
             "theta0_sigma_rad": float(theta0_sigma)}
