@@ -327,6 +327,11 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     tt, cc = t[idx], centre[idx]
     th, th_sure = unwrap_angle(tt, phi[idx])
     (x0, y0, th0), (vx, vy, _) = initial_state(tt, np.column_stack([cc, th]))
+    # (angles after a gap whose turns are not counted may be a whole turn off: theta0
+    # from the frames before it alone when the gap is that early)
+    ts, ths = tt[th_sure], th[th_sure]
+    if not th_sure.all() and ts.size:
+        th0 = float(initial_state(ts, ths)[0][0])
     origin = np.array([x0, y0])
     disp = cc - origin
     reach = np.hypot(*disp.T)
@@ -355,9 +360,10 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     # every angle is taken from theta0, itself a fit: its error is every row's (the
     # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
     # under a 0.9 deg sigma)
-    theta0_sigma = _origin_sigma(tt, th, MAX_ANGULAR_DECELERATION,
+    theta0_sigma = _origin_sigma(ts, ths, MAX_ANGULAR_DECELERATION,
                                  min_scatter=MIN_SCATTER_RAD, min_cubic=EXTRAPOLATION_RAD_S3,
-                                 noise=_frame_noise(tt, th), extrapolated=late)
+                                 noise=_frame_noise(ts, ths), extrapolated=late) \
+        if ts.size else float("inf")
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
             "origin_sigma_m": float(origin_sigma), "origin_extrapolated": bool(late),

@@ -139,3 +139,20 @@ def test_origin_sigma_matches_its_error():
         assert (0.7 if late else 0.8) < rms < 1.25, \
             f"seed {seed}: first frame {'after' if late else 'at'} t = 0: RMS of origin " \
             f"error / sigma {rms:.2f}"
+
+
+def test_uncounted_turns_leave_theta_empty_not_positions():
+    """After a gap whose turns cannot be counted (here: 2 s, and one frame after it to
+    measure no spin from), the shot frame gives x and y but no theta there, and theta0
+    and its sigma come from the frames before the gap."""
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    t = np.r_[np.arange(0.0, 2.0, 1 / 30), 4.0]
+    theta = rng.uniform(1.0, 3.0) * t
+    centre = np.column_stack([np.zeros_like(t), 1.5 * t - 0.1 * t ** 2])
+    centre += rng.normal(0.0, 5e-4, centre.shape)
+    out = to_shot_frame(t, centre, np.angle(np.exp(1j * theta)), np.ones(t.size, bool))
+    assert out["theta_unsure"].tolist() == [False] * (t.size - 1) + [True], f"seed {seed}"
+    assert np.isnan(out["theta"][-1]) and np.isfinite(out["x"]).all(), f"seed {seed}"
+    assert np.allclose(out["theta"][:-1], theta[:-1], atol=1e-6), f"seed {seed}"
+    assert np.isfinite(out["theta0_sigma_rad"]), f"seed {seed}"
