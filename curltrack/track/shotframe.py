@@ -266,13 +266,7 @@ def _frame_noise(t, q):
 
     if t.size < 8:
         return None
-    step = max(float(np.median(np.diff(t))), 1e-9)
-    frame = np.round((t - t[0]) / step).astype(int)
-    # rows timed off the frame grid (a rolling shutter's rows, variable frame timing)
-    # are moved to it with the local rate first: the model is of noise per frame, and
-    # the bench's phone (13.9 ms readout) read 0.58 deg at rho 0.93 from its spin times
-    # those offsets (0.28 deg at rho 0.66 once moved)
-    q = q - np.gradient(q, t) * (t - t[0] - frame * step)
+    frame = np.round((t - t[0]) / max(float(np.median(np.diff(t))), 1e-9)).astype(int)
     try:
         noise = estimate_noise(frame, q)
     except SeriesError:
