@@ -328,10 +328,13 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # a frame's own sigma (sigma_own) is what tells a doubtful frame, below
     sigma_own = sigma_xy
     sigma_xy = np.hypot(sigma_xy, shot["origin_sigma_m"])
-    if shot["origin_extrapolated"] and shot["origin_sigma_m"] > 1e-3:
-        warnings.append(f"{path}: the first measured frame is at t = {t[ok][0]:.2f} s: the "
-                        "origin (the rock at t = 0) is extrapolated back to it, uncertain by "
-                        f"~{1e3 * shot['origin_sigma_m']:.0f} mm (included in sigma_xy)")
+    if shot["origin_sigma_m"] > 1e-3:
+        how = (f"the first measured frame is at t = {t[ok][0]:.2f} s: the origin (the rock "
+               "at t = 0) is extrapolated back to it" if shot["origin_extrapolated"] else
+               "the origin (the rock at t = 0, fitted to the first frames) rests on frames "
+               "that disagree")
+        warnings.append(f"{path}: {how}, uncertain by ~{1e3 * shot['origin_sigma_m']:.0f} mm "
+                        "(included in sigma_xy)")
     sigma_theta = np.hypot(sig_m / max(lever, 1e-6), shot["theta0_sigma_rad"])
     if shot["theta_unsure"].any():
         # an angle off by an unknown whole turn is not given (contract: x, y kept)
