@@ -54,7 +54,7 @@ RATE_SPAN_S = 0.3
 TURN_Z = 3.0
 
 
-def _angle_noise(t, cum, runs) -> float:
+def _angle_noise(cum, runs) -> float:
     """1 sigma (rad) of one frame's angle: second differences within runs of
     consecutive frames (robust; floor :data:`MIN_SCATTER_RAD`)."""
     d2 = [np.diff(cum[i:j], 2) for i, j in runs if j - i >= 3]
@@ -122,7 +122,7 @@ def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray
             out[k] = phi[k] + 2 * np.pi * np.round((pred - phi[k]) / (2 * np.pi))
             if t[k] > t[k - 1]:
                 omega = (out[k] - out[k - 1]) / (t[k] - t[k - 1])
-    noise = _angle_noise(t, out, runs)
+    noise = _angle_noise(out, runs)
     for (i, j), (k, m) in zip(runs[:-1], runs[1:]):  # then each gap, left to right
         ta, tb = t[j - 1], t[k]
         dt = tb - ta
@@ -234,8 +234,8 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
         stat = sig * float(np.sqrt(max(p0 @ (rho ** lag) @ p0, 0.0)))
     else:
         # (the bench's 640x360 hand-held clip: frames 1-3 read 6 mm across the rink off
-        # the rest, the quadratic bent to them and every row was ~4 mm off; a white
-        # scatter said 0.8 mm, the sandwich says 1.9)
+        # the rest, the quadratic bent to them and every row was 3.7 mm off; a common
+        # white scatter said 0.8 mm, the sandwich says 2.1)
         h = np.einsum("ij,ji->i", A, np.linalg.pinv(A))
         u = res / np.maximum(1.0 - h, 1e-3)[:, None] if A.shape[0] > A.shape[1] else 0 * res
         stat = float(np.sqrt(np.mean(np.sum(p0[:, None] ** 2 * u ** 2, axis=0))))
@@ -307,8 +307,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     -------
     dict
         ``x``, ``y``, ``theta`` (N,) with NaN where not ok (``theta`` also where its
-        turn count is not certain: ``theta_unsure`` (N,) bool, :func:`unwrap_angle`); ``origin`` (2,) and
-        ``x_hat``, ``y_hat`` (lattice-frame unit vectors), ``theta0`` (rad),
+        turn count is not certain: ``theta_unsure`` (N,) bool, :func:`unwrap_angle`);
+        ``origin`` (2,) and ``x_hat``, ``y_hat`` (lattice-frame unit vectors), ``theta0`` (rad),
         ``direction_source`` ("travel" or "image up"), ``origin_sigma_m``: the origin's
         1 sigma per coordinate (m: its fit's error, plus the extrapolation back to t = 0
         when the first measured frame is later), ``origin_extrapolated``: whether it is
