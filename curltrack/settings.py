@@ -125,8 +125,9 @@ class TrackingSettings:
         "... and above which (e.g. a rig spacing 2x off, every other thread invisible)")
     max_origin_sigma_m: float = _f(
         0.010, "m", 1e-4, 1.0,
-        "largest 1 sigma of an origin extrapolated back to t = 0 when the first measured "
-        "frame is late; beyond it tracking stops and asks for --start-frame")
+        "largest 1 sigma of the origin (a fit to the first frames, extrapolated back to "
+        "t = 0 when the first measured frame is late); beyond it tracking stops and asks "
+        "for --start-frame")
     max_deceleration_m_s2: float = _f(
         0.3, "m/s^2", 0.01, 10.0,
         "largest deceleration of a sliding rock (mu g, mu <= 0.03 at the slowest speeds of "

@@ -289,7 +289,14 @@ def detect_stops(data: pd.DataFrame, fps: float | None = None) -> StopTimes:
     """
     ok = (data["ok"].to_numpy() == 1)
     vals = data[["t", "x", "y", "theta"]].to_numpy(dtype=float)
-    ok &= np.isfinite(vals).all(axis=1)
+    has_th = np.isfinite(vals).all(axis=1)
+    # rows measured but with an empty theta (a turn count the tracker could not be
+    # sure of, after a gap) still place the rock: the translation uses them
+    if (ok & has_th).any():
+        ok &= np.isfinite(vals[:, :3]).all(axis=1)
+    else:
+        ok &= has_th
+    has_th = has_th[ok]
     t, x, y, th = vals[ok].T
     if fps is not None and fps > 0:
         dt = 1.0 / float(fps)
@@ -307,8 +314,12 @@ def detect_stops(data: pd.DataFrame, fps: float | None = None) -> StopTimes:
                                           quad=True)
     if note:
         out.notes.append(f"translation: {note}")
-    th_sign = np.sign(np.median(th[-5:]) - np.median(th[:3])) or 1.0
-    t_rot, e_rot, note = fit_final_approach(t, th * th_sign, dt)
+    tr, th = t[has_th], th[has_th]
+    if tr.size < 8:
+        t_rot, e_rot, note = None, None, "too few measured frames with theta"
+    else:
+        th_sign = np.sign(np.median(th[-5:]) - np.median(th[:3])) or 1.0
+        t_rot, e_rot, note = fit_final_approach(tr, th * th_sign, dt)
     if note:
         out.notes.append(f"rotation: {note}")
     # A motion that never rises above the noise (pure rotation's translation, a

@@ -317,17 +317,32 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                                         + (SIGMA_MISFIT_SCALE * sig_r) ** 2 + sig_misfit ** 2),
                         sigma_parallax)
     if shot["origin_sigma_m"] > st.max_origin_sigma_m:
-        raise TrackingError(f"the first measured frame is at t = {t[ok][0]:.2f} s and the "
-                            "origin (the rock at t = 0) cannot be extrapolated back to it "
-                            f"better than ~{1e3 * shot['origin_sigma_m']:.0f} mm: give "
+        how = (f"the first measured frame is at t = {t[ok][0]:.2f} s and the origin (the "
+               "rock at t = 0) cannot be extrapolated back to it" if shot["origin_extrapolated"]
+               else "the first measured frames disagree: the origin (the rock at t = 0) "
+               "cannot be placed from them")
+        raise TrackingError(f"{how} better than ~{1e3 * shot['origin_sigma_m']:.0f} mm: give "
                             "--start-frame at a frame where the rock and the grid are "
                             "seen", path=path, where=f"frames 0-{frame[ok][0]}")
+    # the origin's error is every row's (a fit to the first frames, extrapolated or not);
+    # a frame's own sigma (sigma_own) is what tells a doubtful frame, below
+    sigma_own = sigma_xy
     sigma_xy = np.hypot(sigma_xy, shot["origin_sigma_m"])
     if shot["origin_sigma_m"] > 1e-3:
-        warnings.append(f"{path}: the first measured frame is at t = {t[ok][0]:.2f} s: the "
-                        "origin (the rock at t = 0) is extrapolated back to it, uncertain by "
-                        f"~{1e3 * shot['origin_sigma_m']:.0f} mm (included in sigma_xy)")
+        how = (f"the first measured frame is at t = {t[ok][0]:.2f} s: the origin (the rock "
+               "at t = 0) is extrapolated back to it" if shot["origin_extrapolated"] else
+               "the origin (the rock at t = 0, fitted to the first frames) rests on frames "
+               "that disagree")
+        warnings.append(f"{path}: {how}, uncertain by ~{1e3 * shot['origin_sigma_m']:.0f} mm "
+                        "(included in sigma_xy)")
     sigma_theta = np.hypot(sig_m / max(lever, 1e-6), shot["theta0_sigma_rad"])
+    if shot["theta_unsure"].any():
+        # an angle off by an unknown whole turn is not given (contract: x, y kept)
+        sigma_theta = np.where(shot["theta_unsure"], np.nan, sigma_theta)
+        warnings.append(f"{path}: frame(s) {frame_ranges(frame[shot['theta_unsure']])}: "
+                        "the rock's turns across a gap of unmeasured frames cannot be "
+                        "counted for certain from the spin on either side: theta left "
+                        "empty (x, y kept)")
     if any(r.field is not None for r in records):
         # the two fields disagree systematically (mis-registration, aliasing, chroma):
         # half their offset is an error of every row that the pixel noise does not show
@@ -343,11 +358,11 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # a frame whose own fit is far less sure than the video's others is not measured
     # (frames measured from a user's clicks carry the click precision: theirs to judge)
     clicked = np.array([r.clicked for r in records], bool)
-    sure = ok & np.isfinite(sigma_xy)
+    sure = ok & np.isfinite(sigma_own)
     if sure.sum() >= st.min_measured_frames:
-        typical = float(np.median(sigma_xy[sure & ~clicked] if (sure & ~clicked).any()
-                                  else sigma_xy[sure]))
-        unsure = sure & ~clicked & (sigma_xy > st.sigma_outlier_factor * typical)
+        typical = float(np.median(sigma_own[sure & ~clicked] if (sure & ~clicked).any()
+                                  else sigma_own[sure]))
+        unsure = sure & ~clicked & (sigma_own > st.sigma_outlier_factor * typical)
         for i in np.flatnonzero(unsure):
             records[i].status = (f"uncertain: sigma_xy over {st.sigma_outlier_factor:g}x the "
                                  f"video's typical {1e3 * typical:.1f} mm (a doubtful grid "

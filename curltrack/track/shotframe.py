@@ -42,9 +42,57 @@ MAX_ANGULAR_DECELERATION = 1.5
 EXTRAPOLATION_RAD_S3 = EXTRAPOLATION_M_S3 / 0.14
 
 
-def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """Cumulative angle from wrapped angles, robust to gaps: each step takes the 2 pi
-    branch nearest the prediction from the last angular velocity.
+#: A gap: a step between measured frames longer than this many typical frame steps.
+GAP_STEPS = 1.5
+#: The spin rate each side of a gap is the slope of a line through up to this many
+#: measured frames within :data:`RATE_SPAN_S` of the gap.
+RATE_FRAMES = 6
+RATE_SPAN_S = 0.3
+#: A gap's turn count is taken as certain when the nearest branch is closer to the
+#: predicted angle than the next by at least twice this many sigmas of the prediction
+#: (the measured angle |r| from it: |r| + Z sigma < pi).
+TURN_Z = 3.0
+
+
+def _angle_noise(cum, runs) -> float:
+    """1 sigma (rad) of one frame's angle: second differences within runs of
+    consecutive frames (robust; floor :data:`MIN_SCATTER_RAD`)."""
+    d2 = [np.diff(cum[i:j], 2) for i, j in runs if j - i >= 3]
+    d2 = np.concatenate(d2) if d2 else np.empty(0)
+    return max(robust_sigma(d2) / np.sqrt(6.0) if d2.size >= 3 else 0.0, MIN_SCATTER_RAD)
+
+
+def _edge_rate(t, cum, noise, before: bool):
+    """(rate rad/s, its 1 sigma, the time it is the rate at) from a line through up to
+    :data:`RATE_FRAMES` frames within :data:`RATE_SPAN_S` of one end of ``t``; None from
+    fewer than two frames."""
+    sel = (t >= t[-1] - RATE_SPAN_S) if before else (t <= t[0] + RATE_SPAN_S)
+    tk, qk = t[sel], cum[sel]
+    tk, qk = (tk[-RATE_FRAMES:], qk[-RATE_FRAMES:]) if before else (tk[:RATE_FRAMES],
+                                                                    qk[:RATE_FRAMES])
+    if tk.size < 2:
+        return None
+    tc = tk - tk.mean()
+    sxx = float(tc @ tc)
+    return float(tc @ qk) / sxx, noise / np.sqrt(sxx), float(tk.mean())
+
+
+def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cumulative angle from wrapped angles, and whether each one's turn count is sure.
+
+    Within a run of consecutive frames each step takes the 2 pi branch nearest the
+    prediction from the last angular velocity.  Across a gap (a step longer than
+    :data:`GAP_STEPS` typical steps) the angle is predicted from the spin rates
+    measured on both sides (linear fits near the gap; the rate taken as changing
+    linearly between them, so exact at a constant angular deceleration) or, with
+    frames on one side only, from the rate before it and a deceleration of up to
+    :data:`MAX_ANGULAR_DECELERATION`.  The prediction's 1 sigma holds the rates'
+    errors (from the frames' own angle noise), the two ends' noise and the rate's
+    unknown course between them (a monotone rate: anywhere between its two ends'
+    values, taken as uniform).  When the nearest branch does not win by
+    :data:`TURN_Z` of that sigma (|r| + Z sigma >= pi, r the measured angle's offset
+    from the prediction), the turn count across the gap is not certain: that row and
+    every later one are flagged (their angle is off by an unknown whole turn).
 
     Parameters
     ----------
@@ -52,28 +100,84 @@ def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> np.ndarray:
         Times (s), increasing, no NaN.
     phi : (N,) array
         Angles (rad), any branch.
+
+    Returns
+    -------
+    (theta, sure) : (N,) float array (rad), (N,) bool array
     """
+    t = np.asarray(t, float)
     out = np.empty_like(phi, dtype=float)
+    sure = np.ones(phi.size, bool)
     if phi.size == 0:
-        return out
-    out[0] = phi[0]
-    omega = 0.0
-    for i in range(1, phi.size):
-        pred = out[i - 1] + omega * (t[i] - t[i - 1])
-        out[i] = phi[i] + 2 * np.pi * np.round((pred - phi[i]) / (2 * np.pi))
-        if t[i] > t[i - 1]:
-            omega = (out[i] - out[i - 1]) / (t[i] - t[i - 1])
-    return out
+        return out, sure
+    step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    gap = np.r_[False, np.diff(t) > GAP_STEPS * step]
+    starts = np.flatnonzero(np.r_[True, gap[1:]])
+    runs = list(zip(starts, np.r_[starts[1:], phi.size]))
+    for i, j in runs:  # each run on its own first (consecutive frames: one-step rate)
+        out[i] = phi[i]
+        omega = 0.0
+        for k in range(i + 1, j):
+            pred = out[k - 1] + omega * (t[k] - t[k - 1])
+            out[k] = phi[k] + 2 * np.pi * np.round((pred - phi[k]) / (2 * np.pi))
+            if t[k] > t[k - 1]:
+                omega = (out[k] - out[k - 1]) / (t[k] - t[k - 1])
+    noise = _angle_noise(out, runs)
+    for (i, j), (k, m) in zip(runs[:-1], runs[1:]):  # then each gap, left to right
+        ta, tb = t[j - 1], t[k]
+        dt = tb - ta
+        a = _edge_rate(t[:j], out[:j], noise, before=True)
+        b = _edge_rate(t[k:m], out[k:m], noise, before=False)
+        mid = 0.5 * (ta + tb)
+        if a is None and b is None:
+            pred, sig = out[j - 1], np.inf
+        elif a is not None and b is not None:
+            lam = (mid - a[2]) / max(b[2] - a[2], 1e-9)
+            rate = (1 - lam) * a[0] + lam * b[0]
+            pred = out[j - 1] + rate * dt
+            sig = np.sqrt(dt ** 2 * ((1 - lam) ** 2 * a[1] ** 2 + lam ** 2 * b[1] ** 2)
+                          + (abs(a[0] - b[0]) * dt / 2.0) ** 2 / 3.0)
+        else:
+            (w, sw, tw) = a if a is not None else b
+            pred = out[j - 1] + w * dt
+            sig = np.sqrt((sw * dt) ** 2
+                          + (MAX_ANGULAR_DECELERATION * abs(mid - tw) * dt) ** 2 / 3.0)
+        sig = float(np.hypot(sig, np.sqrt(2.0) * noise))
+        turns = np.round((pred - out[k]) / (2 * np.pi))
+        out[k:m] += 2 * np.pi * turns
+        if abs(out[k] - pred) + TURN_Z * sig >= np.pi:
+            sure[k:] = False
+    return out, sure
 
 
-def _window_fit(t, q, window_s: float, min_points: int):
-    """The polynomial fit of :func:`initial_state` (before its robust pass): rows used
-    ``n``, degree (2, or 1 / 0 with too few rows), design ``A`` and coefficients."""
+def _window_fit(t, q, window_s: float = 0.8, min_points: int = 8):
+    """The polynomial fit of :func:`initial_state` to the first ``window_s`` seconds.
+
+    A quadratic (a straight line / a constant with too few rows) by least squares, with
+    one robust pass: rows more than 3 robust sigmas off the first fit in any column are
+    dropped and the fit is made again on the rest.
+
+    Returns
+    -------
+    (deg, A, coef, res)
+        The degree, the design (rows kept, columns 1, t, t^2 up to ``deg``), the
+        coefficients (deg + 1, k) and the kept rows' residuals (rows, k); ``t``, ``q``
+        as in :func:`initial_state`.
+    """
+    q = np.asarray(q, float).reshape(len(t), -1)
     n = min(max(min_points, int(np.count_nonzero(t <= t[0] + window_s))), t.size)
     deg = 2 if n >= 6 else (1 if n >= 2 else 0)
     A = np.vander(t[:n], deg + 1, increasing=True)
-    coef, *_ = np.linalg.lstsq(A, q[:n], rcond=None)
-    return n, deg, A, coef
+    qq = q[:n]
+    coef, *_ = np.linalg.lstsq(A, qq, rcond=None)
+    if n > deg + 4:
+        res = qq - A @ coef
+        mad = robust_sigma(res, axis=0)
+        keep = np.all(np.abs(res) <= 3 * np.maximum(mad, 1e-12), axis=1)
+        if keep.sum() > deg + 2:
+            A, qq = A[keep], qq[keep]
+            coef, *_ = np.linalg.lstsq(A, qq, rcond=None)
+    return deg, A, coef, qq - A @ coef
 
 
 def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_points: int = 8):
@@ -90,70 +194,67 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_point
     -------
     (q0, rate0) : arrays of shape (k,)
     """
-    q = np.asarray(q, float)
-    q2 = q[:, None] if q.ndim == 1 else q
-    n, deg, A, coef = _window_fit(t, q2, window_s, min_points)
-    qq = q2[:n]
-    if n > deg + 4:
-        # one robust pass: frames more than 3 robust sigmas off the fit are dropped
-        res = qq - A @ coef
-        mad = robust_sigma(res, axis=0)
-        keep = np.all(np.abs(res) <= 3 * np.maximum(mad, 1e-12), axis=1)
-        if keep.sum() > deg + 2:
-            coef, *_ = np.linalg.lstsq(A[keep], qq[keep], rcond=None)
-    q0 = coef[0]
-    rate = coef[1] if deg >= 1 else np.zeros_like(q0)
-    return q0, rate
+    deg, _, coef, _ = _window_fit(t, q, window_s, min_points)
+    return coef[0], (coef[1] if deg >= 1 else np.zeros_like(coef[0]))
 
 
 def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
                   window_s: float = 0.8, min_points: int = 8, min_scatter=MIN_SCATTER_M,
                   min_cubic=EXTRAPOLATION_M_S3, noise=None, extrapolated=True) -> float:
-    """1 sigma (m) of the origin extrapolated back to t = 0 by :func:`initial_state`.
+    """1 sigma (m; per coordinate) of the value at t = 0 of :func:`initial_state`'s fit.
 
-    The fit's own extrapolation variance (from its design and the frames' scatter) plus
-    a model term: the path's departure from a quadratic (``min_cubic``), or for
-    a straight line through too few frames, the deceleration it cannot see
-    (``max_deceleration_m_s2``, m/s^2).  Infinite when fewer than two frames are measured.
-    ``q`` (N, k) is k coordinates of one point (k = 2: x, y; k = 1 with the angle's
-    ``min_scatter``, ``min_cubic`` and deceleration in radians: its origin theta0).
-    ``noise`` (sigma, rho): the frames' AR(1) noise (of the whole series) for the fit's
-    variance, instead of its own residuals' scatter.
-    ``extrapolated`` False (the first frame at t = 0): the fit's own variance only.
+    The fit's own variance plus, when the first frame is after t = 0
+    (``extrapolated``), a model term: the path's departure from a quadratic
+    (``min_cubic``), or for a straight line through too few frames, the deceleration it
+    cannot see (``max_deceleration_m_s2``, m/s^2).  Infinite when fewer than two frames
+    are measured.  ``q`` (N, k) is k coordinates of one point (k = 2: x, y, their
+    variances averaged; k = 1 with the angle's ``min_scatter``, ``min_cubic`` and
+    deceleration in radians: its origin theta0).
+
+    The fit's variance is, by default, the sandwich of its design with each kept
+    frame's own residual, leverage-corrected (HC3, r_i / (1 - h_ii): about the
+    delete-one jackknife's variance): it needs no noise model, and a few early frames
+    that the fit bends towards - they weigh most on its value at t = 0 - count with
+    the error they carry, not with the shot's average scatter.  ``noise`` (sigma, rho):
+    instead, the intercept's variance under that AR(1) frame noise (of the whole
+    series).  Floor: ``min_scatter`` (m or rad) as white noise.
     """
     q = np.asarray(q, float).reshape(len(t), -1)
-    n, deg, A, coef = _window_fit(t, q, window_s, min_points)
+    deg, A, coef, res = _window_fit(t, q, window_s, min_points)
     if deg == 0:
         return float("inf")
-    dof = n - deg - 1
+    p0 = np.linalg.pinv(A)[0]
+    floor = min_scatter * float(np.sqrt(p0 @ p0))
     if noise is not None:
         # frames' errors that persist (blur, exposure, the lattice's fit): the
         # intercept's variance under the whole series' AR(1) noise (sigma, rho)
         sig, rho = max(noise[0], min_scatter), noise[1]
-        lag = np.abs(np.subtract.outer(t[:n], t[:n])) / max(float(np.median(np.diff(t))), 1e-9)
-        p0 = np.linalg.pinv(A)[0]
+        tk = A[:, 1]
+        lag = np.abs(np.subtract.outer(tk, tk)) / max(float(np.median(np.diff(t))), 1e-9)
         stat = sig * float(np.sqrt(max(p0 @ (rho ** lag) @ p0, 0.0)))
     else:
-        res = q[:n] - A @ coef
-        scatter = max(float(np.sqrt(np.sum(res ** 2) / (q.shape[1] * dof))) if dof > 0
-                      else 0.0, min_scatter)
-        stat = scatter * np.sqrt(np.linalg.pinv(A.T @ A)[0, 0])
-    span = float(t[n - 1] - t[0])
+        # (the bench's 640x360 hand-held clip: frames 1-3 read 6 mm across the rink off
+        # the rest, the quadratic bent to them and every row was 3.7 mm off; a common
+        # white scatter said 0.8 mm, the sandwich says 2.1)
+        h = np.einsum("ij,ji->i", A, np.linalg.pinv(A))
+        u = res / np.maximum(1.0 - h, 1e-3)[:, None] if A.shape[0] > A.shape[1] else 0 * res
+        stat = float(np.sqrt(np.mean(np.sum(p0[:, None] ** 2 * u ** 2, axis=0))))
+    stat = max(stat, floor)
     if not extrapolated:
         return float(stat)
+    tk = A[:, 1]
     if deg == 2:
         # the path's cubic term, bounded from the fit's own deceleration and speed (a
         # slow rock on keen ice decelerates faster and changes its deceleration faster:
         # a 640x360 handheld draw first measured 1 s after release was 22 mm off its
         # extrapolated origin, against ~3 mm from a fixed bound), times what a cubic
         # does to this fit's intercept
-        c = np.reshape(coef, (deg + 1, -1))
-        accel = 2.0 * np.linalg.norm(c[2])
-        speed = np.linalg.norm(c[1] + 2.0 * c[2] * float(np.mean(t[:n])))
+        accel = 2.0 * np.linalg.norm(coef[2])
+        speed = np.linalg.norm(coef[1] + 2.0 * coef[2] * float(np.mean(tk)))
         cubic = max(min_cubic, MAX_ABS_PHI * accel ** 2 / max(speed, 0.05) / 6.0)
-        model = cubic * abs(float((np.linalg.pinv(A) @ t[:n] ** 3)[0]))
+        model = cubic * abs(float(p0 @ tk ** 3))
     else:
-        model = 0.5 * max_deceleration_m_s2 * float(t[0]) * (float(t[0]) + span)
+        model = 0.5 * max_deceleration_m_s2 * float(t[0]) * (float(t[0]) + float(np.ptp(tk)))
     return float(np.hypot(stat, model))
 
 
@@ -205,20 +306,26 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     Returns
     -------
     dict
-        ``x``, ``y``, ``theta`` (N,) with NaN where not ok; ``origin`` (2,) and
-        ``x_hat``, ``y_hat`` (lattice-frame unit vectors), ``theta0`` (rad),
+        ``x``, ``y``, ``theta`` (N,) with NaN where not ok (``theta`` also where its
+        turn count is not certain: ``theta_unsure`` (N,) bool, :func:`unwrap_angle`);
+        ``origin`` (2,) and ``x_hat``, ``y_hat`` (lattice-frame unit vectors), ``theta0`` (rad),
         ``direction_source`` ("travel" or "image up"), ``origin_sigma_m``: the origin's
-        uncertainty from extrapolating back to t = 0 when the first measured frame is
-        later (m; 0 when it is at t = 0), ``theta0_sigma_rad``: theta0's (rad; its fit's
-        error also when the first frame is at t = 0).
+        1 sigma per coordinate (m: its fit's error, plus the extrapolation back to t = 0
+        when the first measured frame is later), ``origin_extrapolated``: whether it is
+        (bool), ``theta0_sigma_rad``: theta0's (rad, likewise).
     """
     st = TrackingSettings() if settings is None else settings
     min_travel = st.min_travel_m
     ok = np.asarray(ok, bool)
     idx = np.flatnonzero(ok)
     tt, cc = t[idx], centre[idx]
-    th = unwrap_angle(tt, phi[idx])
+    th, th_sure = unwrap_angle(tt, phi[idx])
     (x0, y0, th0), (vx, vy, _) = initial_state(tt, np.column_stack([cc, th]))
+    # (angles after a gap whose turns are not counted may be a whole turn off: theta0
+    # from the frames before it alone when the gap is that early)
+    ts, ths = tt[th_sure], th[th_sure]
+    if not th_sure.all() and ts.size:
+        th0 = float(initial_state(ts, ths)[0][0])
     origin = np.array([x0, y0])
     disp = cc - origin
     reach = np.hypot(*disp.T)
@@ -237,18 +344,22 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     y = np.full(t.shape, np.nan)
     theta = np.full(t.shape, np.nan)
     x[idx], y[idx] = disp @ x_hat, disp @ y_hat
-    theta[idx] = th - th0
+    theta[idx] = np.where(th_sure, th - th0, np.nan)
     # (late: after half a frame - a rolling shutter times the first frame's row a
     # fraction of a millisecond after t = 0, which extrapolates nothing)
     late = tt.size > 0 and tt[0] > 0 and (
         tt.size < 2 or tt[0] > 0.5 * float(np.median(np.diff(tt))))
-    origin_sigma = _origin_sigma(tt, cc, st.max_deceleration_m_s2) if late else 0.0
+    # the origin is a fit even when the first frame is at t = 0: its error is every row's
+    origin_sigma = _origin_sigma(tt, cc, st.max_deceleration_m_s2, extrapolated=late)
     # every angle is taken from theta0, itself a fit: its error is every row's (the
     # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
     # under a 0.9 deg sigma)
-    theta0_sigma = _origin_sigma(tt, th, MAX_ANGULAR_DECELERATION,
+    theta0_sigma = _origin_sigma(ts, ths, MAX_ANGULAR_DECELERATION,
                                  min_scatter=MIN_SCATTER_RAD, min_cubic=EXTRAPOLATION_RAD_S3,
-                                 noise=_frame_noise(tt, th), extrapolated=late)
+                                 noise=_frame_noise(ts, ths), extrapolated=late) \
+        if ts.size else float("inf")
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
-            "origin_sigma_m": float(origin_sigma), "theta0_sigma_rad": float(theta0_sigma)}
+            "origin_sigma_m": float(origin_sigma), "origin_extrapolated": bool(late),
+            "theta_unsure": np.isin(np.arange(t.size), idx[~th_sure]),
+            "theta0_sigma_rad": float(theta0_sigma)}
