@@ -218,11 +218,9 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, rng,
                     n_boot: int = scoring.N_BOOT) -> CandidateScore:
     """Scan and calibrate one candidate (linear); :func:`refine_candidate` refits it.
 
-    The bootstrap's blocks span the correlation time of the residuals the candidate's
-    best linear fit leaves (:func:`alternative_blocks`), not the baseline's: a strong
-    effect's misfit makes the baseline's residuals persist for seconds, and blocks that
-    long carry the misfit itself into the null (a 1.27x patch: linear delta-BIC 124116
-    under a threshold of 130062 from 9 s blocks, never refitted, verdict ``none``).
+    The bootstrap's noise and its blocks are :func:`null_noise`'s: the residuals the
+    candidate's best linear fit leaves where it took most of a misfit and left white
+    noise, the baseline's elsewhere.
     """
     locs = cand.grid or [{}]
     cols = scan_columns(base, fit0, cand, locs)
@@ -240,8 +238,9 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, rng,
     i_loc, sub = keys[best]
     k = ks[best]
     lin = float(stats[best])
-    blocks = alternative_blocks(base, fit0, bases[best])
-    thr = scoring.bootstrap_threshold(bases, fit0.r, blocks, ks, n, rng,
+    r_alt = fit0.r - bases[best] @ (bases[best].T @ fit0.r)
+    blocks, r_null = null_noise(base, fit0.r, r_alt)
+    thr = scoring.bootstrap_threshold(bases, r_null, blocks, ks, n, rng,
                                       level=_level(cand), n_boot=n_boot)
     loc = dict(locs[i_loc])
     score = CandidateScore(cand.name, lin, lin, thr, None, loc, note=cand.note, k=k,
@@ -287,32 +286,64 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, rng,
 #: fraction of the baseline's, below which its persistence is taken for the candidate's
 #: misfit, not for noise (an order of magnitude)
 MISFIT_EXPLAINED = 0.1
+#: ... and at least this fraction of it left, with white residuals, for the candidate's
+#: residuals to be the bootstrap's noise (:func:`null_noise`)
+MISFIT_HALF = 0.5
 
 
 def alternative_blocks(base: JointModel, fit0: FitOut, basis) -> list:
     """Bootstrap blocks (:func:`block_lengths`) per segment: from the residuals left once
     the orthonormal columns ``basis`` (a candidate's best scan location) took their part
     where that took the bulk of the segment's long-scale variance, else from the
-    baseline's own.
+    baseline's own (:func:`null_noise`)."""
+    r_alt = fit0.r - basis @ (basis.T @ fit0.r) if basis.shape[1] else fit0.r
+    return null_noise(base, fit0.r, r_alt)[0]
 
-    Resampling the baseline's residuals under the null is right; measuring *how long*
-    their noise persists on them is not when they hold a strong effect, whose smooth
-    misfit reads as noise persisting for the longest window measured (a 1.27x patch:
-    9 s blocks put the misfit itself into the null, threshold 130062 over the scan's
-    124116).  There the alternative's residuals are the noise's estimate (Hall & Wilson
-    1991), and the candidate explains all but 0.1-2 % of y's long-scale variance
-    (seven of eight strong patches).  With no effect its columns can still take up an
-    instrument's step -- 80 % of a 10 Hz coordinate's long-scale variance, in one of 40
-    clean shots -- and blocks measured on what is left cut the steps up: there the
-    baseline's own persistence stands unless the fit explains more than
-    ``1 - MISFIT_EXPLAINED`` of it.
+
+def null_noise(base: JointModel, r0, r_alt) -> tuple[list, np.ndarray]:
+    """The noise a candidate's threshold is calibrated on: (blocks, residuals to resample).
+
+    ``r0`` are the baseline's whitened residuals, ``r_alt`` the candidate's (its best
+    linear location's projection taken out, or its nonlinear refit's).  Per segment:
+
+    * *how long* the noise persists (the blocks, :func:`block_lengths`) is measured on
+      ``r_alt`` where the candidate took the bulk of the segment's long-scale variance,
+      else on ``r0``.  A strong effect's smooth misfit reads as noise persisting for the
+      longest window measured (a 1.27x patch: 9 s blocks put the misfit itself into the
+      null, threshold 130062 over the scan's 124116); there the alternative's residuals
+      are the noise's estimate (Hall & Wilson 1991), and the candidate explains all but
+      0.1-2 % of y's long-scale variance (seven of eight strong patches).  With no effect
+      its columns can still take up an instrument's step -- 80 % of a 10 Hz coordinate's
+      long-scale variance, in one of 40 clean shots -- and blocks measured on what is
+      left cut the steps up: there the baseline's own persistence stands unless the fit
+      explains more than ``1 - MISFIT_EXPLAINED`` of it.
+    * *what* is resampled is ``r_alt`` where the candidate took at least half of the
+      segment's long-scale variance (``MISFIT_HALF``) and left white noise (correlation
+      time <= ``CORRELATED_TAU``; for x and y, one position fix, neither's AR(1) rho at
+      its bound): an effect's misfit, resampled, is a null that grows with the effect
+      (a 6 mm/s pick at 10 Hz under white noise: delta-BIC 224 under a threshold of 288
+      from the baseline's residuals, -6.5 from its own), while what the candidate left
+      is the noise.  Elsewhere ``r0``: under noise that persists a candidate's columns
+      absorb steps - a friction field took 96 % of a clean 10 Hz shot's y variance under
+      step noise, and its threshold from what was left (16 against the baseline's 315)
+      named it - and on noise it barely changes, ``r0`` is the noise.
     """
-    own = residual_noise(base, fit0.r, pool=False)
-    if basis.shape[1] == 0:
-        return block_lengths(base, own)
-    left = residual_noise(base, fit0.r - basis @ (basis.T @ fit0.r), pool=False)
-    noise = [b if b[0] <= MISFIT_EXPLAINED * a[0] else a for a, b in zip(own, left)]
-    return block_lengths(base, noise)
+    from ..series.noise import CORRELATED_TAU, at_rho_bound
+
+    own = residual_noise(base, r0, pool=False)
+    left = residual_noise(base, r_alt, pool=False)
+    bound = {j for j, c, _ in base.segments if c in POSITION
+             and at_rho_bound(base.shots[j].noise[c])}
+    took = [b[0] <= MISFIT_EXPLAINED * a[0] for a, b in zip(own, left)]
+    misfit = [tau <= CORRELATED_TAU and not (c in POSITION and j in bound)
+              and b[0] <= MISFIT_HALF * a[0]
+              for (j, c, _), a, b, (_, tau) in zip(base.segments, own, left, left)]
+    r = np.array(r0, dtype=float, copy=True)
+    for (_, _, sl), m in zip(base.segments, misfit):
+        if m:
+            r[sl] = r_alt[sl]
+    blocks = block_lengths(base, [b if t else a for a, b, t in zip(own, left, took)])
+    return blocks, r
 
 
 def _centre(loc: dict) -> float:
@@ -563,9 +594,9 @@ def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
     The AR(1) model of second differences misses an instrument's persisting errors and
     heavy tails.  The candidate's residuals are what is left once it explains what it
     can: their long-scale variance per segment (``inflation``) is the noise against which
-    its chi-square gain, its look-elsewhere threshold (block bootstrap of the baseline's
-    residuals, blocks >= 3 correlation times, never shorter than the scan's: see
-    :func:`_no_shorter`) and the structure after it are measured.
+    its chi-square gain, its look-elsewhere threshold (block bootstrap of
+    :func:`null_noise`'s residuals, blocks >= 3 correlation times, never shorter than
+    the scan's: see :func:`_no_shorter`) and the structure after it are measured.
     Under the baseline (no effect) the candidate's residuals carry the instrument's
     noise and the gain shrinks with it; with a real effect they are noise-like and
     nothing changes.  The threshold calibrates the linearised scan, so where the scale
@@ -589,7 +620,8 @@ def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
     score.delta_bic = float(gain - score.k * np.log(n))
     sub_cols, ks = score._scan
     bases = scoring.effect_bases(fit0.J * scale[:, None], [c * scale[:, None] for c in sub_cols])
-    score.threshold = scoring.bootstrap_threshold(bases, fit0.r * scale,
+    _, r_null = null_noise(base, fit0.r, score.fit.r)
+    score.threshold = scoring.bootstrap_threshold(bases, r_null * scale,
                                                   _no_shorter(block_lengths(base, noise_raw),
                                                               score._blocks), ks, n, rng,
                                                   level=_level(score._refine[0]),
