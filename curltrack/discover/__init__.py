@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import CurltrackError, InputError
 from . import scoring
 from .candidates import build_candidates, untested
 from .model import JointModel
@@ -137,6 +137,16 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
 
     base = JointModel(shots, baseline, rig=rig)
     fit0 = base.fit(max_nfev=80, name=names)
+    curl_warnings = []
+    if curl_end_from_positions(base, fit0):
+        base1 = JointModel(shots, baseline, rig=rig)
+        fit1 = base1.fit(max_nfev=80, name=names)
+        if fit1.bic < fit0.bic:
+            base, fit0 = base1, fit1
+            curl_warnings = curl_end_warnings(base, fit0)
+        else:   # the refit did not earn its parameter: the spin lasts the slide
+            for s in shots:
+                s.omega0_curl_end = None
     outlier_warnings = drop_isolated_outliers(base, fit0)
     if outlier_warnings:
         base = JointModel(shots, baseline, rig=rig)
@@ -216,8 +226,84 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
                                             [p.name for p in by_name[sc.name].params])
     return build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds,
                         not_tested=untested(shots, baseline),
-                        warnings=[*unit_warnings, *thinned, *outlier_warnings,
+                        warnings=[*unit_warnings, *thinned, *curl_warnings, *outlier_warnings,
                                   *noise_warnings])
+
+
+#: ends of a position-only shot's curl tried, as fractions of its slide (the scan that
+#: starts the fit of when its spin stops)
+CURL_END_FRACTIONS = np.linspace(0.3, 0.95, 14)
+
+
+def _rotation_unit(model: JointModel, values: dict, j: int) -> tuple[float, float]:
+    """(t_rot of a 1 rad/s spin in s, phi_theta) of shot ``j`` under the shared rotation
+    law: a spin ``w`` stops at ``unit * |w| ** (1 - phi)`` (the paper's closed form)."""
+    from ..physics import closed_form as cf
+
+    phi = float(values["phi_theta"])
+    alpha = float(values.get(f"alpha_theta[{j}]", values["alpha_theta"]))
+    return cf.stop_time_rotation(1.0, phi, alpha, model.R, model.r_band), phi
+
+
+def curl_end_from_positions(model: JointModel, fit) -> list[int]:
+    """Position-only shots whose curl visibly ends before their slide does: their spin's
+    stop is to be fitted (``ShotData.omega0_curl_end`` set to its start value, in place
+    on ``model.shots``, which :func:`discover` made for itself); their indices.
+
+    Without theta the baseline lets the spin last the slide, so the curl (which acts
+    only on a spinning rock) lasts it too.  A spin that stops first ends the curl early:
+    clean 10 Hz position-only draws whose spin stopped at 18 s of a 31 s slide were
+    named ``late_curl`` at delta-BIC 8043, one at 20 s of 23 s a ``pick``.  Each shot's
+    chi-square is scanned over spins that stop at :data:`CURL_END_FRACTIONS` of the
+    slide (under the shared rotation law, the rest of the fit held); where the best
+    beats the lasting spin by more than its BIC penalty, the spin starts there (and
+    :func:`discover` keeps the joint refit only if its BIC is lower).
+    """
+    data = model.data_vector()
+    vec0, preds = model._model_vector(fit.values)
+    chi2_lasting = float(np.sum(model.whiten(data - vec0) ** 2))
+    penalty = np.log(max(fit.n, 2))
+    out = []
+    for j, s in enumerate(model.shots):
+        if s.theta_measured or not s.curls:
+            continue
+        t_slide = s.t_stop_translation or float(s.t[-1])
+        unit, phi = _rotation_unit(model, fit.values, j)
+        best = (chi2_lasting - penalty, None)
+        for q in CURL_END_FRACTIONS:
+            w = s.spin * (q * t_slide / unit) ** (1.0 / (1.0 - phi))
+            s.omega0_curl_end = w   # (the flag predict_shot reads; the value is vals')
+            try:
+                vec, _ = model._model_vector({**fit.values, f"omega0[{j}]": w},
+                                             shots={j}, cache=preds)
+            except CurltrackError:   # a spin the simulator refuses is no better
+                continue
+            chi2 = float(np.sum(model.whiten(data - vec) ** 2))
+            if chi2 < best[0]:
+                best = (chi2, w)
+        s.omega0_curl_end = best[1]
+        if best[1] is not None:
+            out.append(j)
+    return out
+
+
+def curl_end_warnings(model: JointModel, fit) -> list[str]:
+    """A warning per position-only shot whose spin's stop was fitted: when its curl ends
+    (s, with 1 sigma from the fit's omega0)."""
+    out = []
+    for j, s in enumerate(model.shots):
+        if s.omega0_curl_end is None:
+            continue
+        unit, phi = _rotation_unit(model, fit.values, j)
+        w = abs(fit.values[f"omega0[{j}]"])
+        t_end = unit * w ** (1.0 - phi)
+        err = unit * (1.0 - phi) * w ** (-phi) * fit.err(f"omega0[{j}]")
+        t_slide = s.t_stop_translation or float(s.t[-1])
+        out.append(f"{s.name}: position-only: the curl ends at t = {t_end:.2f} +- "
+                   f"{err:.2f} s, before the slide ({t_slide:.1f} s) - the spin stops "
+                   "first; its stop is fitted (the spin's size under the shared rotation "
+                   "law), not measured")
+    return out
 
 
 def drop_isolated_outliers(model: JointModel, fit) -> list[str]:

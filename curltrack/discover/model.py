@@ -35,6 +35,9 @@ from .shots import COORDS
 
 SHARED = ("phi_y", "alpha_y", "phi_theta", "alpha_theta", "a_T")
 PER_SHOT = ("v0", "omega0", "x0", "y0", "theta0", "skew")
+#: smallest spin (rad/s) of a position-only shot whose curl's end is fitted: its side is
+#: the curl's, so it never reaches 0
+OMEGA_MIN = 0.01
 
 def _base(name: str) -> str:
     return name.split("[")[0]
@@ -169,13 +172,21 @@ class JointModel:
             for name in PER_SHOT:
                 key = f"{name}[{i}]"
                 self.values[key] = float(s.start.get(name, 0.0)) if name in s.start else 0.0
-                use = {"v0": s.translates, "omega0": s.spins, "x0": s.translates,
+                spin_fitted = s.spins or s.omega0_curl_end is not None
+                if name == "omega0" and s.omega0_curl_end is not None:
+                    self.values[key] = float(s.omega0_curl_end)
+                use = {"v0": s.translates, "omega0": spin_fitted, "x0": s.translates,
                        "y0": s.translates, "theta0": s.spins, "skew": s.translates}[name]
                 if use:
                     self.free.append(key)
         for name in self.free + list(self.values):
             spec = SHOT_MODEL[_base(name)]
             self.bounds[name] = (spec.lower, spec.upper)
+        hi = float(SHOT_MODEL["omega0"].upper)
+        for i, s in enumerate(shots):
+            if s.omega0_curl_end is not None:   # the curl's side is the data's: kept
+                self.bounds[f"omega0[{i}]"] = ((OMEGA_MIN, hi) if s.spin > 0
+                                               else (-hi, -OMEGA_MIN))
         self._cand_steps = {p.name: p.step for p in cand.params if p.step is not None} \
             if cand is not None else {}
         if cand is not None:
@@ -214,7 +225,9 @@ class JointModel:
         s = self.shots[i]
         t = s.t if t is None else t
         v = values
-        if s.theta_measured:
+        if s.theta_measured or s.omega0_curl_end is not None:
+            # (position-only with the curl's end fitted: a spin under the shared rotation
+            # law whose size says when it stops)
             spin = dict(omega0=v[f"omega0[{i}]"], phi_theta=v["phi_theta"],
                         alpha_theta=v.get(f"alpha_theta[{i}]", v["alpha_theta"]))
         else:  # position-only: the curl's side, a spin that lasts as long as the slide

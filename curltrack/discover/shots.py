@@ -63,6 +63,10 @@ class ShotData:
     spins: bool = True
     spin: int = 1
     theta_measured: bool = True
+    #: position-only shots: the fitted spin's start value (rad/s, signed) when the curl
+    #: ends before the slide does (:func:`curltrack.discover.curl_end_from_positions`);
+    #: None - the spin lasts the slide
+    omega0_curl_end: float | None = None
     t_stop_translation: float | None = None
     t_stop_rotation: float | None = None
     start: dict = field(default_factory=dict)
@@ -118,7 +122,8 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
     if not theta_measured:
         has_theta[:] = False
         warnings.append(f"{name}: theta not measured (position-only series): the spin's "
-                        "side is taken from the curl, its size is not modelled")
+                        "side is taken from the curl, its size is not modelled (only when"
+                        " the spin stops, if the curl ends before the slide)")
     th = obs["theta"][has_theta]
     turn = float(np.max(np.abs(th - th[0]))) if th.size else 0.0
     translates = travel >= PURE_ROTATION_MAX_TRAVEL_M
