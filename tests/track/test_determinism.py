@@ -1,9 +1,11 @@
 """The same input gives the same output: a rendered H.264 clip and its track, each made
-twice in separate processes (other hash seeds, other heap contents), are byte-identical.
+twice in separate processes (other hash seeds, heap contents and thread counts), are
+byte-identical.
 
 (libx264's macroblock tree read memory it had not written at 720 and 960 px widths: the
 same frames gave another file in about half the runs, and a phone test's seed passed or
-failed with it - see :data:`curltrack.render.encode.X264_PARAMS`.)"""
+failed with it - see :data:`curltrack.render.encode.X264_PARAMS`.  Two BLAS threads moved
+a tracked phone clip's y by 0.6 mm - see :func:`curltrack.track.track_video`.)"""
 
 import os
 import subprocess
@@ -28,10 +30,13 @@ render_clip(sys.argv[2], rng, n_frames=30, width=960, height=540, encoding=enc)
 
 
 def _run(args, cwd, run: int):
-    """Run ``python args`` in ``cwd`` with run-specific hash seed and heap contents
-    (glibc's MALLOC_PERTURB_ fills every new and freed block with a run's own byte)."""
+    """Run ``python args`` in ``cwd`` with a run-specific hash seed, heap contents
+    (glibc's MALLOC_PERTURB_ fills every new and freed block with a run's own byte) and
+    ``run`` threads (decoder, OpenCV, BLAS - as far as each allows)."""
     root = Path(curltrack.__file__).resolve().parents[1]
-    env = dict(os.environ, PYTHONHASHSEED=str(run), MALLOC_PERTURB_=str(85 * run),
+    threads = {name: str(run) for name in ("CURLTRACK_THREADS", "OMP_NUM_THREADS",
+                                           "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    env = dict(os.environ, **threads, PYTHONHASHSEED=str(run), MALLOC_PERTURB_=str(85 * run),
                MALLOC_MMAP_THRESHOLD_="1000000000",  # (large blocks from the heap too)
                PYTHONPATH=os.pathsep.join([str(root), str(root / "tests"),
                                            os.environ.get("PYTHONPATH", "")]))
@@ -41,8 +46,8 @@ def _run(args, cwd, run: int):
 
 
 def test_same_clip_same_bytes_in_other_processes(tmp_path):
-    """Render and track twice, each in its own processes: the video, the series CSV and
-    its sidecar JSON are the same bytes."""
+    """Render and track twice, each in its own processes, on 1 and on 2 threads: the
+    video, the series CSV and its sidecar JSON are the same bytes."""
     seed = int(np.random.SeedSequence().entropy % 2**32)
     outputs = []
     for run in (1, 2):
