@@ -591,7 +591,8 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     -----
     Threads: the decoder and OpenCV's own functions use ``CURLTRACK_THREADS`` threads
     (environment variable, default 1 per process; 0 = OpenCV's choice); see
-    :func:`curltrack.video.decoder_threads`.
+    :func:`curltrack.video.decoder_threads`.  BLAS runs on one thread: the numbers do
+    not depend on any thread count.
 
     Returns
     -------
@@ -648,9 +649,12 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
 
     # OpenCV's own threads (and the decoder's, in curltrack.video) = CURLTRACK_THREADS,
     # default 1: the per-frame work is on small crops, and batch runs one process per core.
-    # BLAS too: its threads change the order of the sums in the large least-squares
-    # products of the calibration, and so the last digits of the result - the same
-    # video must give the same numbers in a batch worker and at the command line.
+    # BLAS always on one thread: its threads change the order of the sums in the large
+    # least-squares products of the calibration, and so the last digits of the first
+    # homography - which the grid's snaps on the next frames grow to tenths of a mm
+    # (a rendered phone clip: 0.6 mm in y, 1 mrad in theta with 2 threads).  The same
+    # video must give the same numbers in a batch worker, at the command line and with
+    # any CURLTRACK_THREADS.  (OpenCV's and the decoder's threads do not change them.)
     from threadpoolctl import threadpool_limits
 
     threads_before = cv2.getNumThreads()
@@ -662,7 +666,7 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     report = progress if callable(progress) else None
     progress = bool(progress) and report is None
     try:
-        with threadpool_limits(limits=max(n_threads, 1), user_api="blas"), \
+        with threadpool_limits(limits=1, user_api="blas"), \
                 progress_bar("tracking", total, enabled=progress) as advance:
             records, loop_info = track_frames(
                 frames, rig, path=video_path,
