@@ -60,6 +60,22 @@ def test_heldout_gain_is_not_ruled_by_one_fold():
     assert heldout_log_ratio(before, noisy) > 0, seed
 
 
+def _clean_fit_and_misfit():
+    """A clean shot's baseline fit and a smooth misfit's column in one random segment
+    (the whole shot, wavering every 7-12 s): (seed, rng, model, fit, segment, column)."""
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    series, _ = make_case("none", 0.0, rng)
+    shots = [shot_from_series(s) for s in series]
+    base = JointModel(shots, "paper")
+    fit0 = base.fit(max_nfev=80)
+    j, c, sl = base.segments[int(rng.integers(len(base.segments)))]
+    t = shots[j].t[shots[j].use[c]]
+    col = np.zeros(fit0.n)
+    col[sl] = np.sin(2 * np.pi * t / rng.uniform(7.0, 12.0) + rng.uniform(0, 2 * np.pi))
+    return seed, rng, base, fit0, (j, c, sl), col
+
+
 def test_blocks_come_from_what_the_candidate_leaves():
     """A smooth misfit of random size, phase and period in one coordinate (a strong
     effect the baseline could not fit) reads as noise persisting for seconds: blocks that long would
@@ -69,16 +85,7 @@ def test_blocks_come_from_what_the_candidate_leaves():
 
     from curltrack.discover.scoring import BLOCK_FRAMES
 
-    seed = int(np.random.SeedSequence().entropy % 2**32)
-    rng = np.random.default_rng(seed)
-    series, _ = make_case("none", 0.0, rng)
-    shots = [shot_from_series(s) for s in series]
-    base = JointModel(shots, "paper")
-    fit0 = base.fit(max_nfev=80)
-    j, c, sl = base.segments[int(rng.integers(len(base.segments)))]
-    t = shots[j].t[shots[j].use[c]]
-    col = np.zeros(fit0.n)      # a misfit over the whole shot, wavering every 7-12 s
-    col[sl] = np.sin(2 * np.pi * t / rng.uniform(7.0, 12.0) + rng.uniform(0, 2 * np.pi))
+    seed, rng, base, fit0, (j, c, sl), col = _clean_fit_and_misfit()
     col /= np.linalg.norm(col)
     misfit = SimpleNamespace(r=fit0.r + rng.uniform(100, 300) * col)
     clean = [b for _, b in block_lengths(base, residual_noise(base, fit0.r, pool=False))]
@@ -102,16 +109,7 @@ def test_null_noise_resamples_what_the_candidate_leaves_of_a_misfit():
     from curltrack.discover.search import null_noise
     from curltrack.series.noise import CORRELATED_TAU
 
-    seed = int(np.random.SeedSequence().entropy % 2**32)
-    rng = np.random.default_rng(seed)
-    series, _ = make_case("none", 0.0, rng)
-    shots = [shot_from_series(s) for s in series]
-    base = JointModel(shots, "paper")
-    fit0 = base.fit(max_nfev=80)
-    j, c, sl = base.segments[int(rng.integers(len(base.segments)))]
-    t = shots[j].t[shots[j].use[c]]
-    col = np.zeros(fit0.n)
-    col[sl] = np.sin(2 * np.pi * t / rng.uniform(7.0, 12.0) + rng.uniform(0, 2 * np.pi))
+    seed, rng, base, fit0, (j, c, sl), col = _clean_fit_and_misfit()
     col = effect_bases(fit0.J, [col[:, None]])[0][:, 0]
     r0 = fit0.r - col * (col @ fit0.r)          # clean noise, nothing along the misfit
     misfit = r0 + rng.uniform(100, 300) * col
