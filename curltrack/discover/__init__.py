@@ -260,8 +260,6 @@ def curl_end_from_positions(model: JointModel, fit) -> list[int]:
     :func:`discover` keeps the joint refit only if its BIC is lower).
     """
     data = model.data_vector()
-    vec0, preds = model._model_vector(fit.values)
-    chi2_lasting = float(np.sum(model.whiten(data - vec0) ** 2))
     penalty = np.log(max(fit.n, 2))
     out = []
     for j, s in enumerate(model.shots):
@@ -269,13 +267,13 @@ def curl_end_from_positions(model: JointModel, fit) -> list[int]:
             continue
         t_slide = s.t_stop_translation or float(s.t[-1])
         unit, phi = _rotation_unit(model, fit.values, j)
-        best = (chi2_lasting - penalty, None)
+        best = (fit.chi2 - penalty, None)   # (the fit's own: the spin lasting the slide)
         for q in CURL_END_FRACTIONS:
             w = s.spin * (q * t_slide / unit) ** (1.0 / (1.0 - phi))
             s.omega0_curl_end = w   # (the flag predict_shot reads; the value is vals')
             try:
                 vec, _ = model._model_vector({**fit.values, f"omega0[{j}]": w},
-                                             shots={j}, cache=preds)
+                                             shots={j}, cache=fit.predictions)
             except CurltrackError:   # a spin the simulator refuses is no better
                 continue
             chi2 = float(np.sum(model.whiten(data - vec) ** 2))

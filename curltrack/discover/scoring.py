@@ -9,8 +9,8 @@ A candidate that scans a location (a pick's time, a patch's extent) gets to choo
 best of many places, and its null (effect size 0) sits on a boundary where the location
 is undefined, so its ``delta_bic`` under the baseline is not the textbook chi-square.  We
 calibrate each candidate's threshold by a parametric bootstrap of the fitted baseline
-with block-resampled residuals (``search.null_noise``: where they are white, those the
-candidate leaves).  Refitting the nonlinear models hundreds of times would
+with block-resampled residuals (``search.null_noise``: the candidate's where it took
+most of a misfit and left white noise, the baseline's elsewhere).  Refitting the nonlinear models hundreds of times would
 not fit the time budget, so the refits are done in the linear (Gauss-Newton) limit, exact
 as the effect size goes to zero, which is where the null sits: with ``J0`` the baseline's
 Jacobian and ``E_s`` the effect's Jacobian at location ``s`` (effect size 0), the gain of

@@ -291,15 +291,6 @@ MISFIT_EXPLAINED = 0.1
 MISFIT_HALF = 0.5
 
 
-def alternative_blocks(base: JointModel, fit0: FitOut, basis) -> list:
-    """Bootstrap blocks (:func:`block_lengths`) per segment: from the residuals left once
-    the orthonormal columns ``basis`` (a candidate's best scan location) took their part
-    where that took the bulk of the segment's long-scale variance, else from the
-    baseline's own (:func:`null_noise`)."""
-    r_alt = fit0.r - basis @ (basis.T @ fit0.r) if basis.shape[1] else fit0.r
-    return null_noise(base, fit0.r, r_alt)[0]
-
-
 def null_noise(base: JointModel, r0, r_alt) -> tuple[list, np.ndarray]:
     """The noise a candidate's threshold is calibrated on: (blocks, residuals to resample).
 
@@ -335,9 +326,9 @@ def null_noise(base: JointModel, r0, r_alt) -> tuple[list, np.ndarray]:
     bound = {j for j, c, _ in base.segments if c in POSITION
              and at_rho_bound(base.shots[j].noise[c])}
     took = [b[0] <= MISFIT_EXPLAINED * a[0] for a, b in zip(own, left)]
-    misfit = [tau <= CORRELATED_TAU and not (c in POSITION and j in bound)
+    misfit = [b[1] <= CORRELATED_TAU and not (c in POSITION and j in bound)
               and b[0] <= MISFIT_HALF * a[0]
-              for (j, c, _), a, b, (_, tau) in zip(base.segments, own, left, left)]
+              for (j, c, _), a, b in zip(base.segments, own, left)]
     r = np.array(r0, dtype=float, copy=True)
     for (_, _, sl), m in zip(base.segments, misfit):
         if m:

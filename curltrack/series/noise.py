@@ -339,7 +339,7 @@ def isolated_outliers(r, k: float = OUTLIER_K) -> np.ndarray:
         Residuals (data - model) of one coordinate in units of the rows' noise sigma,
         in time order.
     k : float
-        Threshold in robust sigma.
+        Threshold in sigma of the noise.
 
     Returns
     -------

@@ -14,8 +14,8 @@ import pytest
 
 from curltrack.discover.candidates import build_candidates
 from curltrack.discover.model import JointModel
-from curltrack.discover.search import (alternative_blocks, block_lengths, heldout_log_ratio,
-                                       heldout_worse_p, residual_noise)
+from curltrack.discover.search import (block_lengths, heldout_log_ratio, heldout_worse_p,
+                                       null_noise, residual_noise)
 from curltrack.discover.shots import shot_from_series
 from discover._synth import make_case
 
@@ -81,21 +81,20 @@ def test_blocks_come_from_what_the_candidate_leaves():
     effect the baseline could not fit) reads as noise persisting for seconds: blocks that long would
     put the misfit itself into the null.  Taken out by the candidate's columns, the
     residuals are the noise again, and so are the blocks."""
-    from types import SimpleNamespace
-
     from curltrack.discover.scoring import BLOCK_FRAMES
 
     seed, rng, base, fit0, (j, c, sl), col = _clean_fit_and_misfit()
     col /= np.linalg.norm(col)
-    misfit = SimpleNamespace(r=fit0.r + rng.uniform(100, 300) * col)
+    misfit = fit0.r + rng.uniform(100, 300) * col
     clean = [b for _, b in block_lengths(base, residual_noise(base, fit0.r, pool=False))]
     assert clean == [BLOCK_FRAMES] * len(clean), (seed, clean)     # white noise: short
-    own = [b for _, b in block_lengths(base, residual_noise(base, misfit.r, pool=False))]
+    own = [b for _, b in block_lengths(base, residual_noise(base, misfit, pool=False))]
     assert own[base.segments.index((j, c, sl))] > BLOCK_FRAMES, (seed, c, own)
     # the candidate's columns take the misfit out: the noise's own blocks again
-    assert [b for _, b in alternative_blocks(base, misfit, col[:, None])] == clean, seed
+    left = misfit - col * (col @ misfit)
+    assert [b for _, b in null_noise(base, misfit, left)[0]] == clean, seed
     # with nothing taken out, the blocks are the baseline's own
-    assert [b for _, b in alternative_blocks(base, misfit, np.zeros((fit0.n, 0)))] == own
+    assert [b for _, b in null_noise(base, misfit, misfit)[0]] == own
 
 
 def test_null_noise_resamples_what_the_candidate_leaves_of_a_misfit():
@@ -103,10 +102,7 @@ def test_null_noise_resamples_what_the_candidate_leaves_of_a_misfit():
     resamples the white residuals left (the misfit itself would make a null that grows
     with the effect), and its threshold is the clean data's within the bootstrap's
     scatter.  Columns that take nothing out leave the baseline's residuals in place."""
-    from types import SimpleNamespace
-
     from curltrack.discover.scoring import bootstrap_threshold, effect_bases
-    from curltrack.discover.search import null_noise
     from curltrack.series.noise import CORRELATED_TAU
 
     seed, rng, base, fit0, (j, c, sl), col = _clean_fit_and_misfit()
