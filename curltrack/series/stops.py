@@ -290,12 +290,10 @@ def detect_stops(data: pd.DataFrame, fps: float | None = None) -> StopTimes:
     ok = (data["ok"].to_numpy() == 1)
     vals = data[["t", "x", "y", "theta"]].to_numpy(dtype=float)
     has_th = np.isfinite(vals).all(axis=1)
-    # rows measured but with an empty theta (a turn count the tracker could not be
-    # sure of, after a gap) still place the rock: the translation uses them
-    if (ok & has_th).any():
-        ok &= np.isfinite(vals[:, :3]).all(axis=1)
-    else:
-        ok &= has_th
+    # rows measured with an empty theta (a position-only instrument, or a turn count
+    # the tracker could not be sure of after a gap) still place the rock: the
+    # translation uses every row with t, x, y; the rotation those with theta too
+    ok &= np.isfinite(vals[:, :3]).all(axis=1)
     has_th = has_th[ok]
     t, x, y, th = vals[ok].T
     if fps is not None and fps > 0:
