@@ -509,7 +509,9 @@ def residual_noise(model: JointModel, r, pool: bool = True) -> list:
     (:func:`~curltrack.series.noise.at_rho_bound`) the noise is counted as persisting
     (``tau`` just above :data:`~curltrack.series.noise.CORRELATED_TAU`): with both, step
     noise at 10 Hz passed for whitened in 1 % of 400 pure-noise shots (10.5 % with the
-    pooled tau alone), the other classes as often as before.  ``pool=False``: each
+    pooled tau alone), the other classes as often as before.  A session's shots share
+    one instrument (:func:`_instrument_wide`): where most persist, all do, each at no
+    less than the session's median ``inflation`` per coordinate.  ``pool=False``: each
     segment's own values (the bootstrap's blocks, :func:`block_lengths`: a misfit in one
     coordinate must not lengthen the other's).
     """
@@ -519,6 +521,31 @@ def residual_noise(model: JointModel, r, pool: bool = True) -> list:
            for j, c, sl in model.segments]
     if not pool:
         return out
+    out = _pooled_tau(model, out)
+    # an AR(1) model at its bound (rho = RHO_MAX) did not whiten the noise, whatever
+    # the few windows say: the noise persists (for x and y together, one position fix)
+    persists = {(j, c) for j, c, _ in model.segments if at_rho_bound(model.shots[j].noise[c])}
+    persists |= {(j, c) for (j, c, _), (_, tau) in zip(model.segments, out)
+                 if tau > CORRELATED_TAU}
+    persists, session = _instrument_wide(model, persists)
+    # its long-scale variance is the instrument's too: a shot whose few windows missed
+    # its steps is held to the session's median level (else a patch fitted to one such
+    # step cleared its threshold)
+    for c in session:
+        idx = [i for i, (_, cc, _) in enumerate(model.segments) if cc == c]
+        level = float(np.median([out[i][0] for i in idx]))
+        for i in idx:
+            out[i] = (max(out[i][0], level), out[i][1])
+    for i, (j, c, _) in enumerate(model.segments):
+        if (j, c) in persists:
+            out[i] = (out[i][0], max(out[i][1], float(np.nextafter(CORRELATED_TAU, np.inf))))
+    return out
+
+
+def _pooled_tau(model: JointModel, noise) -> list:
+    """``noise`` with x's and y's ``tau`` of each shot measured on both together (summed
+    long-scale variance over summed variance): one position fix."""
+    out = list(noise)
     for j in {j for j, _, _ in model.segments}:
         idx = [i for i, (jj, c, _) in enumerate(model.segments)
                if jj == j and c in POSITION]
@@ -529,13 +556,30 @@ def residual_noise(model: JointModel, r, pool: bool = True) -> list:
         tau = float(infl / var) if var > 0 else 1.0
         for i in idx:
             out[i] = (out[i][0], max(1.0, tau))
-    # an AR(1) model at its bound (rho = RHO_MAX) did not whiten the noise, whatever
-    # the few windows say: the noise persists (for x and y together, one position fix)
-    persists = {(j, c) for j, c, _ in model.segments if at_rho_bound(model.shots[j].noise[c])}
-    for i, (j, c, _) in enumerate(model.segments):
-        if (j, c) in persists or (c in POSITION and any((j, q) in persists for q in POSITION)):
-            out[i] = (out[i][0], max(out[i][1], float(np.nextafter(CORRELATED_TAU, np.inf))))
     return out
+
+
+def _instrument_wide(model: JointModel, flagged: set) -> tuple[set, set]:
+    """Segments ``(shot, coord)`` whose noise persists, given those ``flagged`` by their
+    own evidence, and the coordinates where that holds session-wide.
+
+    x and y of a shot come from one position fix: one flagged flags both.  The shots of
+    one analysis come from one instrument: when the noise persists in most of three or
+    more shots it persists in all, and a shot whose few windows said otherwise (one in
+    eight under step noise) is not held to the white-noise tests or cut into short
+    bootstrap blocks - in sessions of 3-8 such shots that alone made 3 in 20
+    'unexplained'.  Returns (the segments, the coordinates flagged session-wide).
+    """
+    out = set(flagged)
+    out |= {(j, q) for j, c in flagged if c in POSITION for q in POSITION}
+    session = set()
+    for kind in (POSITION, ("theta",)):
+        shots = sorted({j for j, c, _ in model.segments if c in kind})
+        held = [j for j in shots if any((j, c) in out for c in kind)]
+        if len(shots) >= 3 and 2 * len(held) > len(shots):
+            out |= {(j, c) for j in shots for c in kind}
+            session |= {c for _, c, _ in model.segments if c in kind}
+    return out, session
 
 
 def _level(cand) -> float:
@@ -560,15 +604,25 @@ def block_lengths(model: JointModel, noise) -> list:
     6 s blocks; the data's 161 had named a pick).  But tau also grows with a real
     effect's misfit, and long blocks then carry the misfit into the replicates (a
     moderate ice slope's threshold rose 750 -> 3500, undetected); the second
-    differences' rho is the evidence a smooth misfit cannot give.
+    differences' rho is the evidence a smooth misfit cannot give - or a session whose
+    noise persists in most of its shots (:func:`_instrument_wide`): a misfit would have
+    to be in most of them, and blocks of 3 tau there set a clean 8-shot session's patch
+    threshold at 50 (its delta-BIC 51) where 6 s blocks set it at 75.
     """
-    from ..series.noise import HIGHPASS_S, at_rho_bound
+    from ..series.noise import CORRELATED_TAU, HIGHPASS_S, at_rho_bound
 
     bound = {(j, c) for j, c, _ in model.segments if at_rho_bound(model.shots[j].noise[c])}
+    # (a session whose noise persists in most shots: long blocks in every shot)
+    persisting = bound | {(j, c) for (j, c, _), (_, tau)
+                          in zip(model.segments, _pooled_tau(model, noise))
+                          if tau > CORRELATED_TAU}
+    _, session = _instrument_wide(model, persisting)
+    bound, _ = _instrument_wide(model, bound)
+    bound |= {(j, c) for j, c, _ in model.segments if c in session}
     out = []
     for (j, c, sl), (_, tau) in zip(model.segments, noise):
         b = max(scoring.BLOCK_FRAMES, int(np.ceil(3 * tau)))
-        if (j, c) in bound or (c in POSITION and any((j, q) in bound for q in POSITION)):
+        if (j, c) in bound:
             s = model.shots[j]
             t = s.t[s.use[c]]
             dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0

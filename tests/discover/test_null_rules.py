@@ -135,3 +135,54 @@ def test_null_noise_resamples_what_the_candidate_leaves_of_a_misfit():
     # nothing taken out: the baseline's residuals stay
     _, kept = null_noise(base, misfit, misfit)
     assert np.array_equal(kept, misfit), seed
+
+
+def _session(rng, classes):
+    """A clean session at 10 Hz, position only, one shot per entry of ``classes`` (a
+    noise class each, at its typical scale): its model, baseline fit and shots."""
+    from curltrack.instrument import TYPICAL_SCALE, Sampling, session_models
+    from curltrack.physics import ShotModel
+    from curltrack.simulate import simulate_series
+
+    base = ShotModel(v0=rng.uniform(1.4, 2.2), omega0=rng.choice([-1, 1]) * rng.uniform(0.8, 3))
+    series = [simulate_series(m, noise_m=TYPICAL_SCALE[c][0], noise_rad=TYPICAL_SCALE[c][1],
+                              noise_class=c, seed=int(rng.integers(1 << 30)),
+                              theta_measured=False, sampling=Sampling(rate_hz=10.0))
+              for m, c in zip(session_models(base, len(classes), rng), classes)]
+    model = JointModel([shot_from_series(s) for s in series], "paper")
+    return model, model.fit(max_nfev=80)
+
+
+@pytest.mark.parametrize("odd_one, crowd", [("white", "steps"), ("steps", "white")])
+def test_one_instrument_one_noise_in_a_session(odd_one, crowd):
+    """The shots of one analysis come from one instrument.  Seven shots under one noise
+    class and one (at a random place) under the other: the odd shot is judged as the
+    crowd's noise - a white shot among step-noise shots gets their persistence (long
+    bootstrap blocks, no white-noise tests, at least their median long-scale level),
+    a step-noise shot among white ones keeps its own.  (Each step-noise shot shows its
+    persistence by itself ~7 times in 8, a white one passes for white as often: the
+    crowd's majority is wrong < 1 % of the time.)"""
+    from curltrack.discover.scoring import BLOCK_FRAMES
+    from curltrack.series.noise import CORRELATED_TAU, HIGHPASS_S
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    odd = int(rng.integers(8))
+    classes = [odd_one if i == odd else crowd for i in range(8)]
+    model, fit0 = _session(rng, classes)
+    own = residual_noise(model, fit0.r, pool=False)
+    pooled = residual_noise(model, fit0.r)
+    blocks = [b for _, b in block_lengths(model, own)]
+    odd_segments = [i for i, (j, _, _) in enumerate(model.segments) if j == odd]
+    long_block = round(HIGHPASS_S / 0.1)
+    if crowd == "steps":
+        for i in odd_segments:
+            c = model.segments[i][1]
+            level = np.median([own[k][0] for k, s in enumerate(model.segments) if s[1] == c])
+            assert pooled[i][1] > CORRELATED_TAU, (seed, odd, pooled[i])
+            assert pooled[i][0] >= level - 1e-9, (seed, odd, c, pooled[i], level)
+            assert blocks[i] >= long_block, (seed, odd, blocks)
+    else:
+        for i in odd_segments:   # its own values, per-shot pooling only
+            assert pooled[i][0] == own[i][0], (seed, odd, pooled[i], own[i])
+        assert sum(b == BLOCK_FRAMES for b in blocks) >= len(blocks) - 2, (seed, blocks)
