@@ -56,11 +56,12 @@ def _fit(t, q, sig, knots, keep):
     cols = np.flatnonzero(np.abs(Ak).sum(axis=0) > 0)
     Ak, A = Ak[:, cols], A[:, cols]
     Q, R = np.linalg.qr(Ak)
-    if Q.shape[0] <= Q.shape[1] or np.min(np.abs(np.diag(R))) < 1e-10 * np.max(np.abs(np.diag(R))):
+    d = np.abs(np.diag(R))
+    if Q.shape[0] <= Q.shape[1] or d.min() < 1e-10 * d.max():
         return None
     coef = np.linalg.solve(R, Q.T @ (q[keep] / sig[keep, None]))
     z = q / sig[:, None] - A @ coef
-    # leverage of every row (for the left-out ones: as if added, h/(1+h) form not needed)
+    # each row's leverage (a left-out row's: as if it were one of the fitted ones)
     G = np.linalg.solve(R.T, A.T)          # R^-T A^T
     h = np.sum(G * G, axis=0)
     return z, h, len(cols)
@@ -92,18 +93,14 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
     dict
         ``scale`` (sqrt of sum z^2 / sum (1 - h) over the kept rows; NaN when too few
         rows), ``dof`` (the degrees of freedom behind it: rows - spline parameters,
-        summed over columns), ``n`` (rows used), ``clipped`` (rows left out as wrong),
-        ``wrong`` (N,) bool: those rows, ``miss`` (N,): each fitted row's
-        leverage-corrected miss of the path in units of ``q`` (the RMS over columns; NaN
-        for rows not fitted).
+        summed over columns), ``n`` (rows used), ``clipped`` (rows left out as wrong).
     """
     t = np.asarray(t, float)
     q = np.asarray(q, float).reshape(len(t), -1)
     sig = np.asarray(sigma, float)
     use = np.isfinite(t) & np.isfinite(q).all(axis=1) & np.isfinite(sig) & (sig > 0)
     runs = np.zeros(len(t), int) if runs is None else np.asarray(runs)
-    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0, wrong=np.zeros(len(t), bool),
-               miss=np.full(len(t), np.nan))
+    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0)
     num = den = 0.0
     n_used = clipped = 0
     for lab in np.unique(runs[use]):
@@ -139,9 +136,6 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
                 continue
             z, h, p = res
             m = q.shape[1]
-            zn = z / np.sqrt(np.clip(1 - h, 0.05, None))[:, None]
-            out["miss"][seg] = ss * np.sqrt(np.mean(zn ** 2, axis=1))
-            out["wrong"][seg] = ~keep
             num += float(np.sum(z[keep] ** 2))
             den += float(m * (np.sum(1 - h[keep])))
             n_used += int(keep.sum())
