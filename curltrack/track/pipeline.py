@@ -598,8 +598,10 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     -------
     Series
         Contract columns ``frame, t, x, y, theta, ok`` + ``sigma_xy`` (m),
-        ``sigma_theta`` (rad) - 1 sigma from the marker centroids' pixel noise and the
-        homography's uncertainty - and ``quality`` (0-1: how well the frame's apparent
+        ``sigma_theta`` (rad) - 1 sigma: the marker centroids' and the homography's
+        pixel noise scaled to the rows' own scatter about a smooth path, plus the
+        slowly varying and shared parts (see
+        :func:`curltrack.track.results.calibrate_sigma`) - and ``quality`` (0-1: how well the frame's apparent
         marker layout agrees with the whole video's, times the markers' colour contrast
         relative to 40 Lab units).  Sidecar: the contract keys plus
         ``camera_height_err_m``, ``parallax_factor(_err)``, ``t_stop_*_err``, the shot

@@ -1,0 +1,145 @@
+"""The rows' scatter about a smooth path: a video's own measure of its frame-to-frame noise.
+
+A rock's acceleration changes over seconds (friction, curl), so over a few tenths of a
+second its path in the lattice frame is a cubic polynomial to far below the tracker's
+noise; what a tracked row misses such a path by is that row's frame-to-frame (random)
+error.  :func:`path_scatter` fits a cubic B-spline in ``t`` (knots every
+:data:`KNOT_S`, or every :data:`MIN_ROWS_PER_KNOT` rows at low frame rates; double
+knots at the stops, where the acceleration jumps), weighted by each row's predicted
+sigma, separately per run of rows without a gap and per interlaced field (the fields'
+offset is a systematic error of its own), and returns the scale by which those
+sigmas must be multiplied for the normalized residuals to have unit variance - with
+each residual's leverage taken off (``E[r_i^2] = s^2 sigma_i^2 (1 - h_ii)``) and
+residuals over :data:`CLIP` robust sigmas left out (a wrong row is not noise).
+
+Errors that vary slowly (a lattice misfit the rock crosses over a second, the origin,
+the parallax factor) are invisible to it: they belong to other terms.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["path_scatter", "KNOT_S", "MIN_ROWS_PER_KNOT", "CLIP", "GAP_S"]
+
+#: Knot spacing of the smooth path (s): several times shorter than the time over which
+#: the rock's acceleration changes, long enough to hold a dozen rows at 30 fps.
+KNOT_S = 0.4
+#: At least this many rows per knot interval (low frame rates): keeps the leverage small.
+MIN_ROWS_PER_KNOT = 8
+#: Residuals over this many robust sigmas are not noise (a wrong row): left out.
+CLIP = 5.0
+#: A gap (s) longer than this splits the rows into runs fitted separately.
+GAP_S = 0.25
+
+
+def _knots(t0: float, t1: float, step: float, breaks) -> np.ndarray:
+    n = max(1, int(round((t1 - t0) / step)))
+    inner = list(np.linspace(t0, t1, n + 1)[1:-1])
+    for b in breaks:
+        if t0 + 0.5 * step < b < t1 - 0.5 * step:
+            # two knots at a stop: the path stays C1 there, its acceleration may jump
+            inner = [k for k in inner if abs(k - b) > 0.3 * step] + [b, b]
+    inner = np.sort(inner)
+    return np.r_[[t0] * 4, inner, [t1] * 4]
+
+
+def _fit(t, q, sig, knots, keep):
+    """Weighted LS of q (n, m) on the spline basis over the rows ``keep``: normalized
+    residuals (n, m) and leverages (n,)."""
+    from scipy.interpolate import BSpline
+
+    B = BSpline.design_matrix(np.clip(t, knots[0], knots[-1]), knots, 3).toarray()
+    A = B / sig[:, None]
+    Ak = A[keep]
+    # the basis functions no kept row touches are left out (a run's end trimmed)
+    cols = np.flatnonzero(np.abs(Ak).sum(axis=0) > 0)
+    Ak, A = Ak[:, cols], A[:, cols]
+    Q, R = np.linalg.qr(Ak)
+    d = np.abs(np.diag(R))
+    if Q.shape[0] <= Q.shape[1] or d.min() < 1e-10 * d.max():
+        return None
+    coef = np.linalg.solve(R, Q.T @ (q[keep] / sig[keep, None]))
+    z = q / sig[:, None] - A @ coef
+    # each row's leverage (a left-out row's: as if it were one of the fitted ones)
+    G = np.linalg.solve(R.T, A.T)          # R^-T A^T
+    h = np.sum(G * G, axis=0)
+    return z, h, len(cols)
+
+
+def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) -> dict:
+    """Scale of the rows' scatter about a smooth path, in units of their ``sigma``.
+
+    Parameters
+    ----------
+    t : (N,) array
+        Row times (s).
+    q : (N, m) array
+        Values whose scatter is pooled (e.g. the x and y of the shot frame, m; or
+        theta, rad).  Rows with any NaN, or with ``sigma`` not finite and > 0, are
+        not used.
+    sigma : (N,) array
+        Each row's predicted 1 sigma of its frame-to-frame error (the shape; the
+        scale is what is measured).
+    runs : (N,) int array, optional
+        Rows of different labels are fitted separately (interlaced fields).
+    breaks : sequence of float
+        Times where the path's acceleration may jump (stops): double knots there.
+    fps : float, optional
+        Row rate (rows/s) for the knot spacing's floor; from ``t`` when None.
+
+    Returns
+    -------
+    dict
+        ``scale`` (sqrt of sum z^2 / sum (1 - h) over the kept rows; NaN when too few
+        rows), ``dof`` (the degrees of freedom behind it: rows - spline parameters,
+        summed over columns), ``n`` (rows used), ``clipped`` (rows left out as wrong).
+    """
+    t = np.asarray(t, float)
+    q = np.asarray(q, float).reshape(len(t), -1)
+    sig = np.asarray(sigma, float)
+    use = np.isfinite(t) & np.isfinite(q).all(axis=1) & np.isfinite(sig) & (sig > 0)
+    runs = np.zeros(len(t), int) if runs is None else np.asarray(runs)
+    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0)
+    num = den = 0.0
+    n_used = clipped = 0
+    for lab in np.unique(runs[use]):
+        rows = np.flatnonzero(use & (runs == lab))
+        rows = rows[np.argsort(t[rows])]
+        if len(rows) < 2:
+            continue
+        dt_row = np.median(np.diff(t[rows])) if fps is None else 1.0 / fps
+        step = max(KNOT_S, MIN_ROWS_PER_KNOT * dt_row)
+        cut = np.flatnonzero(np.diff(t[rows]) > max(GAP_S, 3 * dt_row)) + 1
+        for seg in np.split(rows, cut):
+            if len(seg) < 2 * MIN_ROWS_PER_KNOT:
+                continue
+            ts, qs, ss = t[seg], q[seg], sig[seg]
+            knots = _knots(ts[0], ts[-1], step, breaks)
+            keep = np.ones(len(seg), bool)
+            res = None
+            for _ in range(4):
+                res = _fit(ts, qs, ss, knots, keep)
+                if res is None:
+                    break
+                z, h, p = res
+                zn = z / np.sqrt(np.clip(1 - h, 0.05, None))[:, None]
+                s = 1.4826 * np.median(np.abs(zn[keep]))
+                new = (np.abs(zn) <= CLIP * max(s, 1e-12)).all(axis=1)
+                if (new == keep).all():
+                    break
+                keep = new
+                if keep.sum() <= p + 2:
+                    res = None
+                    break
+            if res is None:
+                continue
+            z, h, p = res
+            m = q.shape[1]
+            num += float(np.sum(z[keep] ** 2))
+            den += float(m * (np.sum(1 - h[keep])))
+            n_used += int(keep.sum())
+            clipped += int((~keep).sum())
+    if den > 0:
+        out.update(scale=float(np.sqrt(num / den)), dof=den, n=n_used, clipped=clipped)
+    return out
