@@ -358,15 +358,20 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # from the nadir (the camera following a fast rock lags it by a metre)
     sigma_parallax = np.zeros(n)
     sigma_parallax[idx] = est.k_err * np.hypot(*(app - nd).T) if np.isfinite(est.k_err) else 0.0
+    measured = ok.copy()
     idx = _resolve_cells(records, t, centre, ok, calib, warnings, path, st)
+    # (a frame whose cell index is not certain still gives the rock's angle)
+    uncertain_cell = measured & ~ok
     phi[idx] = [records[i].phi for i in idx]
+    phi[uncertain_cell] = [records[i].phi for i in np.flatnonzero(uncertain_cell)]
     # image up direction in the lattice frame (first measured frame), for a still rock
     r0 = records[idx[0]]
     from ..calib.lens import apply_h, undistort
 
     p0 = undistort(np.nanmean(r0.markers_px, axis=0)[None], calib.K, calib.dist)
     a, b = apply_h(r0.H, np.vstack([p0, p0 + (0.0, -10.0)]))
-    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st)
+    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
+                         angle_rows=uncertain_cell & np.isfinite(phi))
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
     L = np.array([[m.x_m, m.y_m] for m in rig.markers])

@@ -285,7 +285,8 @@ def choose_axes(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.ndarray,
                   up_direction: np.ndarray | None = None,
-                  settings: TrackingSettings | None = None) -> dict:
+                  settings: TrackingSettings | None = None,
+                  angle_rows: np.ndarray | None = None) -> dict:
     """Convert lattice-frame centres and angles into the shot frame.
 
     Parameters
@@ -302,6 +303,10 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
         translate).
     settings : TrackingSettings, optional
         ``min_travel_m`` and ``max_deceleration_m_s2`` (default: the defaults).
+    angle_rows : (N,) bool array, optional
+        Rows whose angle is measured even where their position is not (``ok`` false:
+        a lattice whose cell index is not certain still gives the rock's angle against
+        its threads); they count turns and fix theta0 (default: ``ok``).
 
     Returns
     -------
@@ -319,12 +324,22 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     ok = np.asarray(ok, bool)
     idx = np.flatnonzero(ok)
     tt, cc = t[idx], centre[idx]
-    th, th_sure = unwrap_angle(tt, phi[idx])
+    aidx = idx
+    th_all, sure_all = unwrap_angle(t[aidx], phi[aidx])
+    if angle_rows is not None and (np.asarray(angle_rows, bool) & ~ok).any():
+        more = np.flatnonzero(np.asarray(angle_rows, bool) | ok)
+        th_more, sure_more = unwrap_angle(t[more], phi[more])
+        # (only when they leave every turn count as sure as it was without them)
+        if (~sure_more[np.searchsorted(more, idx)]).sum() <= (~sure_all).sum():
+            aidx, th_all, sure_all = more, th_more, sure_more
+    at_ok = np.searchsorted(aidx, idx)
+    th, th_sure = th_all[at_ok], sure_all[at_ok]
     (x0, y0, th0), (vx, vy, _) = initial_state(tt, np.column_stack([cc, th]))
     # (angles after a gap whose turns are not counted may be a whole turn off: theta0
-    # from the frames before it alone when the gap is that early)
-    ts, ths = tt[th_sure], th[th_sure]
-    if not th_sure.all() and ts.size:
+    # from the frames before it alone when the gap is that early; angles measured
+    # where positions are not count too)
+    ts, ths = t[aidx][sure_all], th_all[sure_all]
+    if (not sure_all.all() or aidx.size > idx.size) and ts.size:
         th0 = float(initial_state(ts, ths)[0][0])
     origin = np.array([x0, y0])
     disp = cc - origin
@@ -354,9 +369,11 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     # every angle is taken from theta0, itself a fit: its error is every row's (the
     # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
     # under a 0.9 deg sigma)
+    late_th = ts.size > 0 and ts[0] > 0 and (
+        ts.size < 2 or ts[0] > 0.5 * float(np.median(np.diff(ts))))
     theta0_sigma = _origin_sigma(ts, ths, MAX_ANGULAR_DECELERATION,
                                  min_scatter=MIN_SCATTER_RAD, min_cubic=EXTRAPOLATION_RAD_S3,
-                                 noise=_frame_noise(ts, ths), extrapolated=late) \
+                                 noise=_frame_noise(ts, ths), extrapolated=late_th) \
         if ts.size else float("inf")
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,

@@ -156,3 +156,28 @@ def test_uncounted_turns_leave_theta_empty_not_positions():
     assert np.isnan(out["theta"][-1]) and np.isfinite(out["x"]).all(), f"seed {seed}"
     assert np.allclose(out["theta"][:-1], theta[:-1], atol=1e-6), f"seed {seed}"
     assert np.isfinite(out["theta0_sigma_rad"]), f"seed {seed}"
+
+
+def test_angles_of_frames_without_a_certain_cell_fix_theta0():
+    """Frames whose position is not given (a cell index not certain) still measure the
+    rock's angle: given as ``angle_rows`` they fix theta0 from the release instead of an
+    extrapolation over the gap, and the angles stay relative to it; the positions and
+    the rows given are those of ``ok`` alone."""
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    err = {False: [], True: []}
+    for _ in range(60):
+        t = np.arange(0.0, 4.0, 1 / 30)
+        omega0, decel = rng.uniform(0.5, 3.0), rng.uniform(0.05, 0.3)
+        phi = omega0 * t - 0.5 * decel * t ** 2 + rng.normal(0, np.radians(0.5), t.size)
+        centre = np.column_stack([np.zeros_like(t), 1.5 * t - 0.1 * t ** 2])
+        first = int(rng.integers(6, 15))      # the first position given
+        early = np.zeros(t.size, bool)
+        early[:int(rng.integers(2, 5))] = True   # angles measured before a gap
+        ok = np.arange(t.size) >= first
+        for given in (False, True):
+            out = to_shot_frame(t, centre, phi, ok, angle_rows=early if given else None)
+            assert np.isnan(out["theta"][~ok]).all() and np.isfinite(out["x"][ok]).all()
+            err[given].append(out["theta0"])   # (true theta0 = 0)
+    rms = {g: float(np.degrees(np.sqrt(np.mean(np.square(e))))) for g, e in err.items()}
+    assert rms[True] < 0.6 * rms[False], f"seed {seed}: theta0 RMS {rms}"
