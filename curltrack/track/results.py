@@ -51,6 +51,10 @@ SIGMA_MISFIT_SCALE = 0.32
 #: set-ups tracked to < 1 mm (action, action-strong, action-fisheye, phone, ladder);
 #: see the README ("Per-frame sigma").
 SIGMA_SLOW_RATIO = 1.0
+#: An origin (the rock at t = 0) whose fit is uncertain by more than this (m) is warned
+#: about, and its fit's own error is then every row's (the bench hand-held: its first
+#: frames disagree by ~3 mm and bend the origin 5 mm; sigma without it 1.7 mm)
+ORIGIN_WARN_M = 1e-3
 #: Fewest degrees of freedom (rows - spline parameters, x and y counted apart) for a
 #: video's own sigma scale; with fewer the scales above are used.
 MIN_SIGMA_DOF = 30
@@ -395,7 +399,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # a frame's own sigma (sigma_own) is what tells a doubtful frame, below
     sigma_own = sigma_xy
     sigma_xy = np.hypot(sigma_xy, shot["origin_sigma_m"])
-    if shot["origin_sigma_m"] > 1e-3:
+    origin_doubtful = bool(shot["origin_sigma_m"] > ORIGIN_WARN_M)
+    if origin_doubtful:
         how = (f"the first measured frame is at t = {t[ok][0]:.2f} s: the origin (the rock "
                "at t = 0) is extrapolated back to it" if shot["origin_extrapolated"] else
                "the origin (the rock at t = 0, fitted to the first frames) rests on frames "
@@ -487,7 +492,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         np.array([r.field if r.field is not None else -1 for r in records]), stops,
         pix_xy=est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2), pix_theta=sig_m / max(lever, 1e-6),
         sys_xy=np.hypot(sigma_parallax, off_xy), sys_theta=off_theta,
-        origin_sigma=(shot["origin_sigma_m"] if shot["origin_extrapolated"] else None),
+        # (the origin's own fit error where it is extrapolated or its frames disagree:
+        # what the warning above says sigma_xy includes)
+        origin_sigma=(shot["origin_sigma_m"]
+                      if shot["origin_extrapolated"] or origin_doubtful else None),
         theta0_sigma=shot["theta0_sigma_rad"])
     if np.isfinite(cal["scale_xy"]):
         data["sigma_xy"] = np.where(ok, cal["sigma_xy"], np.nan)
