@@ -13,7 +13,7 @@ from ..series import Series, make_meta
 from .outline import scale_check, scale_check_resolution
 from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, correct_parallax,
                        estimate_height, focal_for_height, layout_scale_mismatch)
-from .shotframe import to_shot_frame
+from .shotframe import to_shot_frame, window_rows
 from ..series.stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
@@ -88,9 +88,8 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
         fast = c["scale"] * pix_xy
         idx = np.flatnonzero(ok & np.isfinite(xy).all(axis=1))
         if origin_sigma is None:
-            # the origin: a quadratic through the first 0.8 s (shotframe.initial_state)
-            m = min(max(8, int(np.count_nonzero(t[idx] <= t[idx[0]] + 0.8))), len(idx))
-            deg = 2 if m >= 6 else (1 if m >= 2 else 0)
+            # the origin: shotframe.initial_state's fit to the first rows
+            m, deg = window_rows(t[idx])
             p0 = np.linalg.pinv(np.vander(t[idx[:m]], deg + 1, increasing=True))[0]
             first = idx[:m]
             origin_sigma = float(np.sqrt(np.sum(p0 ** 2 * fast[first] ** 2)))
@@ -416,10 +415,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                         "counted for certain from the spin on either side: theta left "
                         "empty (x, y kept)")
     off_xy, off_theta = 0.0, 0.0
+    fld = np.array([r.field if r.field is not None else -1 for r in records])
     if any(r.field is not None for r in records):
         # the two fields disagree systematically (mis-registration, aliasing, chroma):
         # half their offset is an error of every row that the pixel noise does not show
-        fld = np.array([r.field if r.field is not None else -1 for r in records])
         off = field_offset(t, np.column_stack([shot["x"], shot["y"], shot["theta"]]), fld, ok)
         off_xy, off_theta = 0.5 * np.hypot(off[0], off[1]) / np.sqrt(2), 0.5 * abs(off[2])
         sigma_xy = np.hypot(sigma_xy, off_xy)
@@ -489,7 +488,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # sigma_theta above stay where it cannot be measured)
     cal = calibrate_sigma(
         t, np.column_stack([shot["x"], shot["y"]]), shot["theta"], ok,
-        np.array([r.field if r.field is not None else -1 for r in records]), stops,
+        fld, stops,
         pix_xy=est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2), pix_theta=sig_m / max(lever, 1e-6),
         sys_xy=np.hypot(sigma_parallax, off_xy), sys_theta=off_theta,
         # (the origin's own fit error where it is extrapolated or its frames disagree:

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._stats import robust_sigma
+
 __all__ = ["path_scatter", "KNOT_S", "MIN_ROWS_PER_KNOT", "CLIP", "GAP_S"]
 
 #: Knot spacing of the smooth path (s): several times shorter than the time over which
@@ -124,7 +126,7 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
                     break
                 z, h, p = res
                 zn = z / np.sqrt(np.clip(1 - h, 0.05, None))[:, None]
-                s = 1.4826 * np.median(np.abs(zn[keep]))
+                s = robust_sigma(zn[keep], centre=0.0)
                 new = (np.abs(zn) <= CLIP * max(s, 1e-12)).all(axis=1)
                 if (new == keep).all():
                     break

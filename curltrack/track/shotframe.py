@@ -150,6 +150,22 @@ def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return out, sure
 
 
+def window_rows(t, window_s: float = 0.8, min_points: int = 8) -> tuple[int, int]:
+    """(rows, degree) of :func:`initial_state`'s fit: the first ``window_s`` seconds of
+    ``t`` (at least ``min_points`` rows), a quadratic - a straight line or a constant
+    with too few rows."""
+    n = min(max(min_points, int(np.count_nonzero(t <= t[0] + window_s))), len(t))
+    return n, (2 if n >= 6 else (1 if n >= 2 else 0))
+
+
+def _first_late(t) -> bool:
+    """Whether the first of the times ``t`` (s) is after t = 0 by more than half a
+    frame step: then a value at t = 0 is extrapolated (a rolling shutter times the
+    first frame's row a fraction of a millisecond late, which extrapolates nothing)."""
+    return bool(len(t) > 0 and t[0] > 0 and (
+        len(t) < 2 or t[0] > 0.5 * float(np.median(np.diff(t)))))
+
+
 def _window_fit(t, q, window_s: float = 0.8, min_points: int = 8):
     """The polynomial fit of :func:`initial_state` to the first ``window_s`` seconds.
 
@@ -165,8 +181,7 @@ def _window_fit(t, q, window_s: float = 0.8, min_points: int = 8):
         as in :func:`initial_state`.
     """
     q = np.asarray(q, float).reshape(len(t), -1)
-    n = min(max(min_points, int(np.count_nonzero(t <= t[0] + window_s))), t.size)
-    deg = 2 if n >= 6 else (1 if n >= 2 else 0)
+    n, deg = window_rows(t, window_s, min_points)
     A = np.vander(t[:n], deg + 1, increasing=True)
     qq = q[:n]
     coef, *_ = np.linalg.lstsq(A, qq, rcond=None)
@@ -360,20 +375,15 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     theta = np.full(t.shape, np.nan)
     x[idx], y[idx] = disp @ x_hat, disp @ y_hat
     theta[idx] = np.where(th_sure, th - th0, np.nan)
-    # (late: after half a frame - a rolling shutter times the first frame's row a
-    # fraction of a millisecond after t = 0, which extrapolates nothing)
-    late = tt.size > 0 and tt[0] > 0 and (
-        tt.size < 2 or tt[0] > 0.5 * float(np.median(np.diff(tt))))
+    late = _first_late(tt)
     # the origin is a fit even when the first frame is at t = 0: its error is every row's
     origin_sigma = _origin_sigma(tt, cc, st.max_deceleration_m_s2, extrapolated=late)
     # every angle is taken from theta0, itself a fit: its error is every row's (the
     # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
     # under a 0.9 deg sigma)
-    late_th = ts.size > 0 and ts[0] > 0 and (
-        ts.size < 2 or ts[0] > 0.5 * float(np.median(np.diff(ts))))
     theta0_sigma = _origin_sigma(ts, ths, MAX_ANGULAR_DECELERATION,
                                  min_scatter=MIN_SCATTER_RAD, min_cubic=EXTRAPOLATION_RAD_S3,
-                                 noise=_frame_noise(ts, ths), extrapolated=late_th) \
+                                 noise=_frame_noise(ts, ths), extrapolated=_first_late(ts)) \
         if ts.size else float("inf")
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
