@@ -42,6 +42,7 @@ def _lost_lattice_case(tmp_path, seed, size=(640, 360), n_frames=90):
     from curltrack.render import CameraConfig, RenderConfig, render_video
     from curltrack.track import track_video
 
+    tmp_path.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     # (a 0.1 m lattice is ~20 px at 640x360: too fine to be found at all)
     sp = float(rng.choice([0.15, 0.2] if size[0] < 900 else [0.1, 0.15, 0.2]))
@@ -63,9 +64,29 @@ def _lost_lattice_case(tmp_path, seed, size=(640, 360), n_frames=90):
     try:
         series = track_video(video, rig)
     except TrackingError as exc:
-        raise AssertionError(f"{what}: {exc}") from exc
+        raise _Refused(f"{what}: {exc}") from exc
     m = series.data.merge(truth.data[["frame", "x", "y"]], on="frame", suffixes=("", "_t"))
     return m, what
+
+
+class _Refused(AssertionError):
+    """The tracker refused the clip with a one-line error: no row at all, so no wrong
+    row - but nothing about the cell count was tested either."""
+
+
+def _measurable_case(tmp_path, seed, tries: int = 3):
+    """A lost-lattice case the tracker measures, redrawn from ``seed``'s stream when
+    it refuses one (a fast hand-held shot over a fine lattice can be unmeasurable:
+    'the rock could be measured in only 4 of 90 frames' is an honest answer, and what
+    this test checks is that no measured row is wrong).  Fails after ``tries``."""
+    seeds = np.random.default_rng(seed).integers(1 << 32, size=tries - 1)
+    refused = []
+    for s in [seed, *map(int, seeds)]:
+        try:
+            return _lost_lattice_case(tmp_path / str(s), s, size=(960, 540))
+        except _Refused as exc:
+            refused.append(str(exc))
+    raise AssertionError(f"every case refused: {refused}")
 
 
 def _check_no_wrong_row(m, what):
@@ -81,14 +102,14 @@ def test_lattice_lost_while_moving_fast_no_wrong_cell(tmp_path):
     seed = int(np.random.SeedSequence().entropy % (1 << 32))
     # (at 640x360 a fast handheld shot is often not measurable at all - an error, not a
     # wrong row - and then tests nothing)
-    _check_no_wrong_row(*_lost_lattice_case(tmp_path, seed, size=(960, 540)))
+    _check_no_wrong_row(*_measurable_case(tmp_path, seed))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("rep", range(6))
 def test_lattice_lost_while_moving_fast_no_wrong_cell_many(tmp_path, rep):
     seed = int(np.random.SeedSequence().entropy % (1 << 32))
-    _check_no_wrong_row(*_lost_lattice_case(tmp_path, seed, size=(960, 540)))
+    _check_no_wrong_row(*_measurable_case(tmp_path, seed))
 
 
 def test_path_step_measures_a_whole_cell_jump():
