@@ -53,7 +53,8 @@ N_SHOTS = {"ice_slope": 2}
 CAP = {"friction_patch": 0.9, "late_curl": 2.5}
 #: the README's 90 % strengths at 2 mm white noise (the noise-class runs scale them by
 #: each class's position-noise scale)
-S90_WHITE = {"pick": 0.002, "friction_patch": 0.08, "late_curl": 0.23}
+S90_WHITE = {"pick": 0.002, "friction_patch": 0.08, "late_curl": 0.23, "ice_slope": 0.0054,
+             "velocity_dependent_friction": 0.0032}
 
 
 def run_one(effect: str, strength: float, seed: int, n_shots: int | None = None,
@@ -93,7 +94,9 @@ def noise_class_table(classes, n_clean: int, trials: int, effects, seed0: int,
                "detection": {}}
         log(f"{cls}: false alarms {len(bad)}/{n_clean} {row['false_verdicts']} (cpu median "
             f"{row['cpu_clean_median']:.1f} s)", flush=True)
+        row["strength_90"] = {}
         for eff in effects:
+            rates = []
             for mult in mults:
                 # a patch's factor stays > 0 and late curl's |k| within its candidate
                 # bounds: at the steps class's scale (x25) they are capped
@@ -106,6 +109,11 @@ def noise_class_table(classes, n_clean: int, trials: int, effects, seed0: int,
                     "verdicts": [r["verdict"] for r in rr]}
                 log(f"{cls}: {eff} at {st:.4g} (x{mult:g}): {hits}/{trials} named, {wrong} "
                     f"wrong {[r['verdict'] for r in rr]}", flush=True)
+                rates.append({"strength": st, "rate": hits / trials})
+            # this class's own 90 % strength over the multiples run (None: not reached
+            # at the largest; at a cap the strengths repeat and the first is taken)
+            row["strength_90"][eff] = strength_90(rates)
+            log(f"{cls}: {eff} 90 % strength {row['strength_90'][eff]}", flush=True)
         out[cls] = row
     return out
 
@@ -184,6 +192,25 @@ def false_alarm_rate(n: int = 40, seed0: int = 5000, log=print) -> dict:
     return res
 
 
+def _print_class_table(table: dict) -> None:
+    """The README's per-class table: false alarms, and per effect the rate at each
+    strength run, wrong names and the class's 90 % strength."""
+    effects = sorted({k.split(" x")[0] for row in table.values() for k in row["detection"]})
+    print("\n| noise class | false alarms | " + " | ".join(
+        f"`{e}`: named at strength (wrong) | `{e}` 90 %" for e in effects) + " | CPU median |")
+    print("|---|---|" + "---|---|" * len(effects) + "---|")
+    for cls, row in table.items():
+        cells = []
+        for e in effects:
+            d = [v for k, v in row["detection"].items() if k.split(" x")[0] == e]
+            cells.append(", ".join(f"{v['strength']:.3g}: {v['hits']}/{v['trials']}"
+                                   + (f" ({v['wrong']})" if v["wrong"] else "") for v in d))
+            s90 = row["strength_90"].get(e)
+            cells.append(f"{s90:.3g}" if s90 is not None else "not reached")
+        print(f"| `{cls}` | {row['false_alarms']}/{row['clean']} | " + " | ".join(cells)
+              + f" | {row['cpu_clean_median']:.1f} s |")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=10)
@@ -213,6 +240,8 @@ def main(argv=None):
             res["session_cpu_s"] = session_cpu(args.session, args.seed0)
         if args.json:
             Path(args.json).write_text(json.dumps(res, indent=2, default=str))
+        if args.noise_classes:
+            _print_class_table(res["noise_classes"])
         return
     effects = [e for e in args.effects.split(",") if e]
     if args.grid:

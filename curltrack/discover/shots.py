@@ -67,6 +67,8 @@ class ShotData:
     #: ends before the slide does (:func:`curltrack.discover.curl_end_from_positions`);
     #: None - the spin lasts the slide
     omega0_curl_end: float | None = None
+    #: position-only shots: the curl says the spin's side beyond 2 sigma
+    curl_side_sure: bool = False
     t_stop_translation: float | None = None
     t_stop_rotation: float | None = None
     start: dict = field(default_factory=dict)
@@ -169,7 +171,8 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
                             "counter-clockwise")
         else:
             shot.spin = -1 if a > 0 else 1
-            if e is None or abs(a) < 2 * e:
+            shot.curl_side_sure = e is not None and abs(a) >= 2 * e
+            if not shot.curl_side_sure:
                 warnings.append(f"{name}: the curl ({a:.2g} m/s^2) does not tell the "
                                 "spin's side within 2 sigma; taken from its sign")
     return shot

@@ -137,12 +137,19 @@ def _slope_check(p):
 def _slope_unidentifiable(shots, baseline):
     if not translating(shots):
         return "the rock does not slide"
-    if len(spin_directions(shots)) < 2 and not all(
+    # a position-only shot's side is read off its curl, which a lateral slope moves the
+    # same way in every shot: curls that go both ways beyond doubt are spins of both
+    # sides (a slope steeper than the curl would bend them all one way), so those
+    # shots count as surely as measured rotations
+    sides = spin_directions(shots) | {
+        s.spin for s in translating(shots)
+        if not getattr(s, "theta_measured", True) and getattr(s, "curl_side_sure", False)}
+    if len(sides) < 2 and not all(
             getattr(s, "theta_measured", True) for s in translating(shots)):
-        return ("needs shots of both spin directions with the rotation measured "
-                "(position-only shots: the spin's side is read off the curl, which a "
-                "lateral slope moves)")
-    if len(spin_directions(shots)) < 2:
+        return ("needs shots of both spin directions, with the rotation measured or "
+                "curls that go both ways beyond doubt (position-only shots: the spin's "
+                "side is read off the curl, which a lateral slope moves)")
+    if len(sides) < 2:
         return ("needs shots of both spin directions in a common frame: with one spin "
                 "direction a lateral slope is degenerate with the curl a_T, and a slope "
                 "along the sheet with the friction law (alpha, phi) up to a late lateral "

@@ -141,6 +141,62 @@ def test_close_rivals_make_the_evidence_ambiguous():
     assert rivals(late, [late, kick]) == []
 
 
+def test_rivals_are_compared_under_one_noise_level():
+    """Each candidate's own delta-BIC is its gain over the level its own residuals
+    show; a rival is judged under the best's level.  Two fits that take the same
+    chi-square off the baseline are rivals even when the other's residuals read 20 %
+    noisier (its own delta-BIC 34 lower)."""
+    from curltrack.discover.report import rivals
+    from curltrack.discover.search import CandidateScore
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    n = 1000
+    r0 = rng.normal(0, 1, n) + np.linspace(-0.8, 0.8, n) ** 2
+    fits = {}
+    for name in ("pick", "ice_slope"):
+        fits[name] = type("Fit", (), {"r": rng.normal(0, 1, n), "n": n})()
+    # the same raw gain: both leave residuals of the same size
+    fits["ice_slope"].r = fits["pick"].r[::-1].copy()
+    raw = float(np.sum(r0 ** 2) - np.sum(fits["pick"].r ** 2))
+    out = []
+    for name, level in (("pick", 1.0), ("ice_slope", 1.2)):
+        gain = raw / level
+        sc = CandidateScore(name, gain - 2 * np.log(n), gain - 2 * np.log(n),
+                            {"threshold": 10.0}, fits[name], {}, k=2)
+        sc.chi2_gain = gain
+        sc._scale = np.full(n, level ** -0.5)
+        out.append(sc)
+    pick, slope = out
+    assert pick.delta_bic - slope.delta_bic > 6, f"seed {seed}"
+    assert rivals(pick, out) == [], f"seed {seed}: without r0, own units"
+    assert rivals(pick, out, r0=r0) == ["ice_slope"], f"seed {seed}"
+
+
+def test_ice_slope_is_tested_on_position_only_shots_that_curl_both_ways():
+    """Position-only shots whose curls go both ways beyond doubt are spins of both
+    sides: a lateral slope is tested (and found) on them; a curl that does not tell its
+    side leaves it untested."""
+    from curltrack.discover.candidates import untested
+    from curltrack.discover.shots import shot_from_series
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    strength = float(rng.uniform(0.02, 0.04))
+    inst = {"noise_class": "white", "rate_hz": 30.0, "theta": False}
+    shots, truth = make_case("ice_slope", strength, rng, n_shots=2, instrument=inst)
+    data = [shot_from_series(s, None) for s in shots]
+    assert all(d.curl_side_sure for d in data) and {d.spin for d in data} == {-1, 1}
+    assert "ice_slope" not in untested(data, "paper"), f"seed {seed}"
+    data[1].curl_side_sure = False
+    assert "ice_slope" in untested(data, "paper"), f"seed {seed}"
+    rep = discover(shots, baseline="paper", seed=seed % 1000, n_boot=200)
+    found = {f.effect: f for f in rep.findings}["ice_slope"]
+    est, err = found.params["slope_x_mm_per_m"], found.params_err["slope_x_mm_per_m"]
+    assert abs(est - truth["slope_x_mm_per_m"]) < 3 * err + 0.1 * strength, \
+        f"seed {seed}: {est} +- {err} vs {truth}"
+
+
 def _case_clean(seed):
     rng = np.random.default_rng(seed)
     shots, truth = make_case("none", 0.0, rng)

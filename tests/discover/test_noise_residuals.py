@@ -30,6 +30,23 @@ def test_noise_sigma_and_rho_recovered(seed):
     assert abs(nz.rho - rho) < 0.2
 
 
+def test_noise_of_an_irregular_clock_is_the_positions_not_the_timestamps():
+    """An instrument samples at 10 Hz with timestamp jitter (the row times are right,
+    only uneven): the noise is the positions' own.  Differences taken on the frame
+    index read the speed times the jitter as noise (2 m/s x 10 ms: ~1 cm at 2 mm)."""
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    sigma = rng.uniform(1e-3, 3e-3)
+    n = 250
+    rate = rng.choice([10.0, 25.0])
+    t = np.arange(n) / rate + rng.normal(0, rng.uniform(0.05, 0.1) / rate, n)
+    v0 = rng.uniform(1.5, 2.5)
+    q = v0 * t - 0.04 * t**2 + rng.normal(0, sigma, n)
+    nz = estimate_noise(np.arange(n), q, t=t)
+    assert nz.sigma == pytest.approx(sigma, rel=0.2), f"seed {seed}: {nz}"
+    assert nz.rho < 0.35, f"seed {seed}: {nz}"
+
+
 def test_noise_ignores_a_velocity_jump():
     rng = np.random.default_rng(5)
     n = 600
