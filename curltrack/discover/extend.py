@@ -195,7 +195,7 @@ def describe(sc, shots) -> dict:
             "function": fx}
 
 
-def choose(supported, scores, margin: float):
+def choose(supported, scores, margin: float, r0=None):
     """The extension that the verdict should report, or None.
 
     Parameters
@@ -213,19 +213,23 @@ def choose(supported, scores, margin: float):
     best = max(ext, key=lambda sc: sc.delta_bic)
     if best.structure_after is None or best.structure_after.structured:
         return None
+    from .search import judged_like
+
     for o in scores:
         if o is best or not np.isfinite(o.delta_bic):
             continue
-        if o.extension and o.delta_bic > best.delta_bic - margin:
+        # (with the baseline's residuals r0: every rival under the best's noise level)
+        gain, dbic = judged_like(best, o, r0)
+        if o.extension and dbic > best.delta_bic - margin:
             return None      # two extensions explain it alike: not one description
-        if o.extension and o.chi2_gain is not None and best.chi2_gain is not None and \
-                o.chi2_gain >= best.chi2_gain and o.delta_bic > max(o.threshold["threshold"], 0.0):
+        if o.extension and gain is not None and best.chi2_gain is not None and \
+                gain >= best.chi2_gain and o.delta_bic > max(o.threshold["threshold"], 0.0):
             # fits at least as well: only the parameter count would decide.  On one draw
             # the spin falls with the speed, so a translation coupling 1 + c |omega| is a
             # friction law in disguise (a bent law: chi-square gain 634 against the
             # coupling's 633, delta-BIC 618 and 625)
             return None
-        if not o.extension and o.delta_bic > best.delta_bic - margin and \
+        if not o.extension and dbic > best.delta_bic - margin and \
                 o.delta_bic > max(o.threshold["threshold"], 0.0):
             return None      # a named effect explains it about as well: it keeps the name
     return best

@@ -8,7 +8,7 @@ from .._atomic import atomic_path, write_json
 from .extend import choose as choose_extension
 from .extend import extension_object
 from .residuals import binned_means
-from .search import heldout_log_ratio, heldout_worse_p
+from .search import heldout_log_ratio, heldout_worse_p, judged_like
 from .results import DiscoveryReport, Finding
 from .shots import COORDS
 
@@ -120,24 +120,6 @@ def _evidence(sc, h0) -> str:
             f"Bonferroni p = {after.p_min_adjusted:.2g}")
 
 
-def _judged_like(best, o, r0):
-    """(chi-square gain, delta-BIC) of the refitted rival ``o`` under the noise level
-    ``best`` is judged by (:func:`.search.rescore`'s per-segment scale), or ``o``'s own
-    when either was not refitted or no baseline residuals ``r0`` are given.
-
-    Each candidate's own delta-BIC divides its gain by the level its own residuals show,
-    a median over a few windows: under white noise 1 to ~1.3 by chance.  Rivals are
-    compared in one unit: two shots with a lateral ice slope (10 Hz, 2 mm) - the slope
-    and a pick in one shot took chi-square 238.7 and 237.4 off the baseline's, but the
-    slope's residuals read 20 % noisier, and the pick was named ahead of it by 34.
-    """
-    if r0 is None or best._scale is None or o.fit is None or best.fit is None:
-        return o.chi2_gain, o.delta_bic
-    scale = best._scale
-    gain = float(np.sum((r0 * scale) ** 2) - np.sum((o.fit.r * scale) ** 2))
-    return gain, gain - o.k * np.log(r0.size)
-
-
 def rivals(best, scores, margin: float = AMBIGUITY_MARGIN, r0=None) -> list:
     """Names of the other candidates the data cannot tell from ``best``.
 
@@ -151,13 +133,13 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN, r0=None) -> list:
     not of how well the rival competes on these data.  A rival known only linearly
     (never refitted) is compared by that delta-BIC.  With the baseline's whitened
     residuals ``r0``, a refitted rival's gain and delta-BIC are taken under the noise
-    level ``best`` is judged by (:func:`_judged_like`).
+    level ``best`` is judged by (:func:`.search.judged_like`).
     """
     out = []
     for o in scores:
         if o is best or not np.isfinite(o.delta_bic):
             continue
-        gain, dbic = _judged_like(best, o, r0)
+        gain, dbic = judged_like(best, o, r0)
         close_bic = dbic > best.delta_bic - margin
         close_fit = (gain is not None and best.chi2_gain is not None
                      and gain >= best.chi2_gain
@@ -227,7 +209,8 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
     best_fit, best_model_name, best_params = fit0, None, {}
     ambiguous = []
     # a data-driven extension speaks only when it beats every named effect (discover.extend)
-    ext = None if base_bound else choose_extension(supported, scores, AMBIGUITY_MARGIN)
+    ext = None if base_bound else choose_extension(supported, scores, AMBIGUITY_MARGIN,
+                                                   r0=fit0.r)
     named = [sc for sc in scores if not sc.extension]
     supported_named = [(sc, f) for sc, f in supported if not sc.extension]
     if ext is not None:
