@@ -34,7 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "discover"))
 
-from _synth import make_case  # noqa: E402
+from _synth import S90_2MM, class_strength, make_case  # noqa: E402
 
 from curltrack.discover import discover  # noqa: E402
 
@@ -48,13 +48,6 @@ GRIDS = {
 }
 #: shots per case: a lateral slope needs shots of both spin directions
 N_SHOTS = {"ice_slope": 2}
-
-
-CAP = {"friction_patch": 0.9, "late_curl": 2.5}
-#: the README's 90 % strengths at 2 mm white noise (the noise-class runs scale them by
-#: each class's position-noise scale)
-S90_WHITE = {"pick": 0.002, "friction_patch": 0.08, "late_curl": 0.23, "ice_slope": 0.0054,
-             "velocity_dependent_friction": 0.0032}
 
 
 def run_one(effect: str, strength: float, seed: int, n_shots: int | None = None,
@@ -90,7 +83,8 @@ def noise_class_table(classes, n_clean: int, trials: int, effects, seed0: int,
         scale = TYPICAL_SCALE[cls][0] / 0.002
         row = {"scale": scale, "clean": n_clean, "false_alarms": len(bad),
                "false_verdicts": [(r["verdict"], r["instrument"]) for r in bad],
-               "cpu_clean_median": float(np.median([r["cpu_seconds"] for r in runs])),
+               "cpu_clean_median": (float(np.median([r["cpu_seconds"] for r in runs]))
+                                    if runs else float("nan")),
                "detection": {}}
         log(f"{cls}: false alarms {len(bad)}/{n_clean} {row['false_verdicts']} (cpu median "
             f"{row['cpu_clean_median']:.1f} s)", flush=True)
@@ -98,9 +92,7 @@ def noise_class_table(classes, n_clean: int, trials: int, effects, seed0: int,
         for eff in effects:
             rates = []
             for mult in mults:
-                # a patch's factor stays > 0 and late curl's |k| within its candidate
-                # bounds: at the steps class's scale (x25) they are capped
-                st = min(S90_WHITE[eff] * scale * mult, CAP.get(eff, np.inf))
+                st = class_strength(eff, cls, mult)
                 rr = [run_one(eff, st, seed0 + 100 + i, instrument=inst) for i in range(trials)]
                 hits = sum(r["verdict"] == eff for r in rr)
                 wrong = sum(r["verdict"] not in (eff, "none", "unexplained") for r in rr)
@@ -208,7 +200,7 @@ def _print_class_table(table: dict) -> None:
             s90 = row["strength_90"].get(e)
             cells.append(f"{s90:.3g}" if s90 is not None else "not reached")
         print(f"| `{cls}` | {row['false_alarms']}/{row['clean']} | " + " | ".join(cells)
-              + f" | {row['cpu_clean_median']:.1f} s |")
+              + (f" | {row['cpu_clean_median']:.1f} s |" if row["clean"] else " | - |"))
 
 
 def main(argv=None):
@@ -231,7 +223,7 @@ def main(argv=None):
     if args.noise_classes or args.session:
         res = {}
         if args.noise_classes:
-            eff = [e for e in args.effects.split(",") if e in S90_WHITE]
+            eff = [e for e in args.effects.split(",") if e in S90_2MM]
             res["noise_classes"] = noise_class_table(args.noise_classes.split(","),
                                                      args.clean, args.trials, eff, args.seed0,
                                                      mults=[float(m) for m in

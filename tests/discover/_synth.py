@@ -27,6 +27,23 @@ STRENGTH = {
               "1 + s and 1 - s from y = 2 m to 9.5 m (zero mean; not a candidate)",
 }
 
+#: the 90 % strengths at 2 mm / 0.3 deg white noise, 30 Hz, theta measured (README's
+#: first detection table, ``scripts/bench_discover.py``)
+S90_2MM = {"pick": 0.002, "friction_patch": 0.08, "late_curl": 0.23, "ice_slope": 0.0054,
+           "velocity_dependent_friction": 0.0032}
+#: the largest strength drawn: a patch's factor stays > 0 and a late curl's |k| within
+#: its candidate's bounds (at the steps class's scale, x25, they would not)
+STRENGTH_CAP = {"friction_patch": 0.9, "late_curl": 2.5}
+
+
+def class_strength(effect: str, noise_class: str, mult: float) -> float:
+    """``mult`` x the 2 mm 90 % strength scaled by the class's position-noise scale
+    (:data:`curltrack.instrument.TYPICAL_SCALE`), capped (:data:`STRENGTH_CAP`)."""
+    from curltrack.instrument import TYPICAL_SCALE
+
+    scale = TYPICAL_SCALE[noise_class][0] / NOISE_M
+    return float(min(S90_2MM[effect] * scale * mult, STRENGTH_CAP.get(effect, np.inf)))
+
 
 def ice(rng, **kw) -> dict:
     """Shared friction and curl of one sheet (paper-like pebbled ice)."""
