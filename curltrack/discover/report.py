@@ -227,7 +227,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
         # take the verdict for them (a hidden translation coupling was named a pick and
         # a patch once a friction law explained it alike)
         better = sorted(o.name for o, _ in supported if o.extension
-                        and o.delta_bic >= sc.delta_bic + AMBIGUITY_MARGIN)
+                        and judged_like(sc, o, fit0.r)[1] >= sc.delta_bic + AMBIGUITY_MARGIN)
         if better:
             ambiguous = better
         if base_bound:
