@@ -59,6 +59,10 @@ def run_one(effect: str, strength: float, seed: int, n_shots: int | None = None,
         instrument = {"noise_class": instrument["noise_class"],
                       "rate_hz": float(rng.choice([10.0, 30.0])),
                       "theta": bool(rng.random() < 0.5)}
+        if effect == "velocity_dependent_friction":
+            # its baseline (dry friction) needs the rotation: a position-only series is
+            # refused (InputError), not a case
+            instrument["theta"] = True
     shots, truth = make_case(effect, strength, rng, n_shots=n_shots, instrument=instrument)
     t0, c0 = time.perf_counter(), time.process_time()
     rep = discover(shots, baseline=truth["baseline"], seed=seed)
