@@ -35,6 +35,21 @@ S90_2MM = {"pick": 0.002, "friction_patch": 0.08, "late_curl": 0.23, "ice_slope"
 #: its candidate's bounds (at the steps class's scale, x25, they would not)
 STRENGTH_CAP = {"friction_patch": 0.9, "late_curl": 2.5}
 
+#: each noise class's own 90 % strengths (README's per-class table: ``python
+#: scripts/bench_discover.py --noise-classes CLASS --clean 20 --trials 10 --mults 1,2,4``,
+#: 2026-11-26, rate and theta drawn per case); None: not reached at the largest strength
+#: run (4x :func:`class_strength`'s 1x, or its cap)
+S90_BY_CLASS = {
+    "white": {"pick": 0.004, "friction_patch": 0.127, "late_curl": 0.23, "ice_slope": 0.0188,
+              "velocity_dependent_friction": 0.0032},
+    "ar1": {"pick": 0.004, "friction_patch": 0.113, "late_curl": 0.23, "ice_slope": None,
+            "velocity_dependent_friction": 0.0128},
+    "heavy": {"pick": 0.002, "friction_patch": 0.16, "late_curl": 0.46, "ice_slope": 0.0216,
+              "velocity_dependent_friction": 0.0064},
+    "steps": {"pick": None, "friction_patch": None, "late_curl": None, "ice_slope": None,
+              "velocity_dependent_friction": None},
+}
+
 
 def class_strength(effect: str, noise_class: str, mult: float) -> float:
     """``mult`` x the 2 mm 90 % strength scaled by the class's position-noise scale
