@@ -34,7 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "discover"))
 
-from _synth import S90_2MM, class_strength, make_case  # noqa: E402
+from _synth import NOISE_M, S90_2MM, class_strength, make_case  # noqa: E402
 
 from curltrack.discover import discover  # noqa: E402
 
@@ -59,11 +59,9 @@ def run_one(effect: str, strength: float, seed: int, n_shots: int | None = None,
         instrument = {"noise_class": instrument["noise_class"],
                       "rate_hz": float(rng.choice([10.0, 30.0])),
                       "theta": bool(rng.random() < 0.5)}
-        if effect == "velocity_dependent_friction":
-            # its baseline (dry friction) needs the rotation: a position-only series is
-            # refused (InputError), not a case
-            instrument["theta"] = True
     shots, truth = make_case(effect, strength, rng, n_shots=n_shots, instrument=instrument)
+    if instrument is not None:   # (as drawn: make_case keeps theta where the effect needs it)
+        instrument = {**instrument, "theta": all(s.theta_measured for s in shots)}
     t0, c0 = time.perf_counter(), time.process_time()
     rep = discover(shots, baseline=truth["baseline"], seed=seed)
     return {"effect": effect, "strength": strength, "seed": seed,
@@ -84,7 +82,7 @@ def noise_class_table(classes, n_clean: int, trials: int, effects, seed0: int,
         inst = {"noise_class": cls, "random": True}
         runs = [run_one("none", 0.0, seed0 + i, instrument=inst) for i in range(n_clean)]
         bad = [r for r in runs if r["verdict"] != "none"]
-        scale = TYPICAL_SCALE[cls][0] / 0.002
+        scale = TYPICAL_SCALE[cls][0] / NOISE_M
         row = {"scale": scale, "clean": n_clean, "false_alarms": len(bad),
                "false_verdicts": [(r["verdict"], r["instrument"]) for r in bad],
                "cpu_clean_median": (float(np.median([r["cpu_seconds"] for r in runs]))

@@ -36,6 +36,7 @@ import numpy as np
 
 from ..physics.extensions import omega_ref
 from ..physics.terms import speed_law_gain
+from .search import heldout_log_ratio, judged_like
 
 #: kind -> the term added to the equations, for REPORT.json ``terms``
 FORMULAS = {
@@ -213,8 +214,6 @@ def choose(supported, scores, margin: float, r0=None):
     best = max(ext, key=lambda sc: sc.delta_bic)
     if best.structure_after is None or best.structure_after.structured:
         return None
-    from .search import heldout_log_ratio, judged_like
-
     for o in scores:
         if o is best or not np.isfinite(o.delta_bic):
             continue

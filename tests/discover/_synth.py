@@ -111,12 +111,16 @@ def make_case(effect: str, strength: float, rng, n_shots: int = 1, instrument=No
     shots : list of Series
     truth : dict
         The effect's true parameters (contract names) and ``baseline`` to use.
+        ``velocity_dependent_friction`` is told against the dry baseline, which needs
+        the rotation: its shots measure theta whatever ``instrument`` says.
     """
     sign = float(rng.choice([-1.0, 1.0]))
     baseline = "paper"
     ice_kw = ice(rng)
     if effect == "velocity_dependent_friction":
         baseline = "dry"
+        if instrument is not None:
+            instrument = {**instrument, "theta": True}
         ice_kw = ice(rng, phi_y=-strength, phi_theta=-strength)
     if effect == "ice_slope" and n_shots < 2:
         n_shots = 1

@@ -216,8 +216,6 @@ def test_hidden_effect_named_under_each_noise_class(effect, noise_class):
     for _ in range(10):
         inst = {"noise_class": noise_class, "rate_hz": float(rng.choice([10.0, 30.0])),
                 "theta": bool(rng.random() < 0.5)}
-        if effect == "velocity_dependent_friction":
-            inst["theta"] = True   # (its dry baseline needs the rotation)
         shots, truth = make_case(effect, strength, rng, instrument=inst,
                                  n_shots=2 if effect == "ice_slope" else 1)
         verdicts.append(discover(shots, baseline=truth["baseline"], n_boot=200,
