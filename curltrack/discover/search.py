@@ -515,19 +515,14 @@ def residual_noise(model: JointModel, r, pool: bool = True) -> list:
     segment's own values (the bootstrap's blocks, :func:`block_lengths`: a misfit in one
     coordinate must not lengthen the other's).
     """
-    from ..series.noise import CORRELATED_TAU, at_rho_bound, residual_structure
+    from ..series.noise import CORRELATED_TAU, residual_structure
 
     out = [residual_structure(r[sl], model.shots[j].t[model.shots[j].use[c]])
            for j, c, sl in model.segments]
     if not pool:
         return out
     out = _pooled_tau(model, out)
-    # an AR(1) model at its bound (rho = RHO_MAX) did not whiten the noise, whatever
-    # the few windows say: the noise persists (for x and y together, one position fix)
-    persists = {(j, c) for j, c, _ in model.segments if at_rho_bound(model.shots[j].noise[c])}
-    persists |= {(j, c) for (j, c, _), (_, tau) in zip(model.segments, out)
-                 if tau > CORRELATED_TAU}
-    persists, session = _instrument_wide(model, persists)
+    _, persists, session = _persisting(model, out)
     # its long-scale variance is the instrument's too: a shot whose few windows missed
     # its steps is held to the session's median level (else a patch fitted to one such
     # step cleared its threshold)
@@ -557,6 +552,24 @@ def _pooled_tau(model: JointModel, noise) -> list:
         for i in idx:
             out[i] = (out[i][0], max(1.0, tau))
     return out
+
+
+def _persisting(model: JointModel, pooled) -> tuple[set, set, set]:
+    """Segments ``(shot, coord)`` whose noise persists, from ``pooled`` (``(inflation,
+    tau)`` per segment, x's and y's tau pooled: :func:`_pooled_tau`): (those whose AR(1)
+    model sits at its rho bound, those whose noise persists - that, or tau above
+    :data:`~curltrack.series.noise.CORRELATED_TAU`, widened by :func:`_instrument_wide` -
+    and the coordinates where it holds session-wide).
+
+    An AR(1) model at its bound (rho = RHO_MAX) did not whiten the noise, whatever the
+    few windows say: the noise persists (for x and y together, one position fix)."""
+    from ..series.noise import CORRELATED_TAU, at_rho_bound
+
+    bound = {(j, c) for j, c, _ in model.segments if at_rho_bound(model.shots[j].noise[c])}
+    flagged = bound | {(j, c) for (j, c, _), (_, tau) in zip(model.segments, pooled)
+                       if tau > CORRELATED_TAU}
+    persists, session = _instrument_wide(model, flagged)
+    return bound, persists, session
 
 
 def _instrument_wide(model: JointModel, flagged: set) -> tuple[set, set]:
@@ -609,14 +622,10 @@ def block_lengths(model: JointModel, noise) -> list:
     to be in most of them, and blocks of 3 tau there set a clean 8-shot session's patch
     threshold at 50 (its delta-BIC 51) where 6 s blocks set it at 75.
     """
-    from ..series.noise import CORRELATED_TAU, HIGHPASS_S, at_rho_bound
+    from ..series.noise import HIGHPASS_S
 
-    bound = {(j, c) for j, c, _ in model.segments if at_rho_bound(model.shots[j].noise[c])}
     # (a session whose noise persists in most shots: long blocks in every shot)
-    persisting = bound | {(j, c) for (j, c, _), (_, tau)
-                          in zip(model.segments, _pooled_tau(model, noise))
-                          if tau > CORRELATED_TAU}
-    _, session = _instrument_wide(model, persisting)
+    bound, _, session = _persisting(model, _pooled_tau(model, noise))
     bound, _ = _instrument_wide(model, bound)
     bound |= {(j, c) for j, c, _ in model.segments if c in session}
     out = []
