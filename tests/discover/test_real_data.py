@@ -116,32 +116,40 @@ def test_position_only_10hz_clockwise_draw_is_none():
 
 
 def test_position_only_spin_that_stops_first_is_fitted_not_named():
-    """A position-only draw whose spin stops at a random 40-85 % of its slide (the curl
+    """Position-only draws whose spin stops at a random 40-85 % of the slide (the curl
     ends with it) at 10 or 30 Hz: `none`, not a late curl or a pick, and the curl's end
-    reported within 3 sigma (or 0.3 s) of the truth."""
+    reported within 3 sigma (or 0.3 s) of the truth.  Two draws, at most one false
+    alarm: each candidate's threshold is a 1 % look-elsewhere level, so one draw says
+    something other than `none` in a few per cent of runs by design (a 10 Hz draw named
+    a pick at delta-BIC 5.6, seed 2781979112140719912); two in two, < 0.3 %."""
     import re
 
     from curltrack.physics import closed_form as cf
 
     seed = _entropy()
     rng = np.random.default_rng(seed)
-    m = ShotModel(v0=float(rng.uniform(1.5, 2.2)), omega0=1.0)
-    alpha_theta = m.alpha_theta_value      # (the rotation law's, held below)
-    t_tr = cf.stop_time_translation(m.v0, m.phi_y, m.alpha_y)
-    t_rot = float(rng.uniform(0.4, 0.85)) * t_tr
-    unit = cf.stop_time_rotation(1.0, m.phi_theta, alpha_theta)
-    w0 = float(rng.choice([-1, 1])) * (t_rot / unit) ** (1.0 / (1.0 - m.phi_theta))
-    m = ShotModel(v0=m.v0, omega0=w0, alpha_theta=alpha_theta)
-    rate = float(rng.choice([10.0, 30.0]))
-    s = simulate_series(m, noise_m=0.002, seed=int(rng.integers(1 << 30)),
-                        theta_measured=False, sampling=Sampling(rate_hz=rate))
-    rep = discover(s, n_boot=200, seed=int(rng.integers(1 << 30)))
-    msg = (seed, rate, round(t_rot, 2), rep["verdict"], rep["warnings"])
-    assert rep["verdict"] == "none", msg
-    said = [w for w in rep["warnings"] if "the curl ends at" in w]
-    assert len(said) == 1, msg
-    t_end, err = map(float, re.search(r"ends at t = ([\d.]+) \+- ([\d.]+) s", said[0]).groups())
-    assert abs(t_end - t_rot) <= max(3 * err, 0.3), msg
+    alarms = []
+    for _ in range(2):
+        m = ShotModel(v0=float(rng.uniform(1.5, 2.2)), omega0=1.0)
+        alpha_theta = m.alpha_theta_value      # (the rotation law's, held below)
+        t_tr = cf.stop_time_translation(m.v0, m.phi_y, m.alpha_y)
+        t_rot = float(rng.uniform(0.4, 0.85)) * t_tr
+        unit = cf.stop_time_rotation(1.0, m.phi_theta, alpha_theta)
+        w0 = float(rng.choice([-1, 1])) * (t_rot / unit) ** (1.0 / (1.0 - m.phi_theta))
+        m = ShotModel(v0=m.v0, omega0=w0, alpha_theta=alpha_theta)
+        rate = float(rng.choice([10.0, 30.0]))
+        s = simulate_series(m, noise_m=0.002, seed=int(rng.integers(1 << 30)),
+                            theta_measured=False, sampling=Sampling(rate_hz=rate))
+        rep = discover(s, n_boot=200, seed=int(rng.integers(1 << 30)))
+        msg = (seed, rate, round(t_rot, 2), rep["verdict"], rep["warnings"])
+        if rep["verdict"] != "none":
+            alarms.append(msg)
+        said = [w for w in rep["warnings"] if "the curl ends at" in w]
+        assert len(said) == 1, msg
+        t_end, err = map(float,
+                         re.search(r"ends at t = ([\d.]+) \+- ([\d.]+) s", said[0]).groups())
+        assert abs(t_end - t_rot) <= max(3 * err, 0.3), msg
+    assert len(alarms) <= 1, alarms
 
 
 # --- bad input: one line naming the file and the row ---------------------------------
