@@ -72,10 +72,16 @@ def run(i: int, seed: int, n: int, scale: float, out: Path, track: bool,
     setup = draw_setup(rng, kind, scale)
     video = out / f"setup{i:02d}_{setup.kind}.mp4"
     t0 = time.process_time()
-    truth = render_video(setup.shot, default_rig(), video, video.with_suffix(".truth.csv"),
-                         setup.config, seed=setup.seed)
-    row = dict(i=i, **setup.summary, frames=truth.meta["n_frames"],
-               render_cpu_s=round(time.process_time() - t0, 1))
+    row = dict(i=i, **setup.summary)
+    try:
+        truth = render_video(setup.shot, default_rig(), video,
+                             video.with_suffix(".truth.csv"), setup.config, seed=setup.seed)
+    except CurltrackError as exc:
+        # a set-up the renderer cannot draw (a lens that folds over where a moving
+        # camera looks) is a row of the table, not the end of the sweep
+        row.update(error="render: " + str(exc).splitlines()[0][:150])
+        return row
+    row.update(frames=truth.meta["n_frames"], render_cpu_s=round(time.process_time() - t0, 1))
     if not track:
         return row
     from curltrack.track import track_video

@@ -73,3 +73,24 @@ def test_sweep_score_on_a_known_error():
     assert out["max_mm"] == pytest.approx(1e3 * e.max()), seed
     assert out["z_xy"] == pytest.approx(np.std(err[10:, :2]) / sig), seed
     assert out["z_theta"] == pytest.approx(np.std(err[10:, 2]) / (2 * sig)), seed
+
+
+def test_sweep_row_for_a_setup_the_renderer_refuses(tmp_path, monkeypatch):
+    """One set-up the renderer cannot draw is a row with its one-line error; the sweep
+    goes on."""
+    import sys
+
+    import curltrack.render  # noqa: F401  (the package; its name is shadowed by a function)
+    from curltrack.errors import ParameterError
+
+    render = sys.modules["curltrack.render"]
+
+    def refuse(*args, **kwargs):
+        raise ParameterError("lens distortion folds over inside the image (k1, k2 too "
+                             "strong for this field of view)", where="camera.k1")
+
+    monkeypatch.setattr(render, "render_video", refuse)
+    seed = _seed()
+    row = _sweep_module().run(0, seed, 1, 0.25, tmp_path, track=True, random_kind=True)
+    assert row["error"].startswith("render: ") and "folds over" in row["error"], (seed, row)
+    assert "kind" in row and "frames" not in row, (seed, row)
