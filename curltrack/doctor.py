@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .errors import CurltrackError, TrackingError
+from .errors import CurltrackError
 from .rig import Rig
 
 __all__ = ["Check", "DoctorReport", "diagnose"]

@@ -2,8 +2,6 @@
 
 from dataclasses import replace
 
-import numpy as np
-
 from curltrack.physics.shot import ShotModel
 from curltrack.rig import default_rig
 from curltrack.simulate import simulate_series

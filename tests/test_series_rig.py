@@ -1,7 +1,5 @@
 """Series and rig parsers: contract round trips, clear errors, property-based checks."""
 
-import io
-
 import numpy as np
 import pandas as pd
 import pytest
@@ -9,7 +7,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from curltrack.errors import RigError, SeriesError
-from curltrack.rig import default_rig, load_rig
+from curltrack.rig import load_rig
 from curltrack.series import read_series, sidecar_path, write_series
 from hardening.badinputs import RIG_TOML
 from synth import closed_form_series

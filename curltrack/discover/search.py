@@ -404,10 +404,7 @@ def _start_model(base, fit0, cand, E, loc, sub) -> JointModel:
 def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
                      name: str = "<shots>") -> CandidateScore:
     """Nonlinear fit of baseline + candidate from the best scan locations (in place)."""
-    from .residuals import structure_tests
-
     cand, starts = score._refine
-    n = fit0.n
     loc_names = [p.name for p in cand.location]
     tried = []
     for E, loc, sub, k in starts:

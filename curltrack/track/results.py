@@ -193,7 +193,7 @@ def shutter_slide(records, calib, readout_s: float) -> tuple[int, float]:
     homographies; running median of 3 against a cell jump) times ``readout_s``.
     Returns (frame of the largest, its slide in m); (-1, 0.0) with < 3 measured frames.
     """
-    from ..calib.lens import apply_h, undistort
+    from ..calib.lens import undistort
 
     used = [r for r in records if r.status == "" and r.H is not None]
     if len(used) < 3 or readout_s <= 0:

@@ -12,7 +12,6 @@
 import numpy as np
 import pytest
 
-from curltrack.discover.candidates import build_candidates
 from curltrack.discover.model import JointModel
 from curltrack.discover.search import (block_lengths, heldout_log_ratio, heldout_worse_p,
                                        null_noise, residual_noise)

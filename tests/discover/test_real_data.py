@@ -78,41 +78,55 @@ def test_false_alarm_rate_per_noise_class(noise_class):
 @pytest.mark.slow
 @pytest.mark.parametrize("noise_class", NOISE_CLASSES)
 def test_false_alarm_rate_sessions(noise_class):
-    """Sessions of 3-8 shots with a 5 % per-shot alpha spread: <= 5 % false alarms."""
+    """40 sessions of 3-8 shots with a 5 % per-shot alpha spread: <= 5 % (2 of 40) say
+    anything but none."""
     seed = _entropy()
-    bad = _false_alarms(noise_class, 20, seed, sessions=True)
-    assert len(bad) <= 1, f"seed {seed}: {len(bad)}/20 false alarms: {bad}"
+    bad = _false_alarms(noise_class, 40, seed, sessions=True)
+    assert len(bad) <= 2, f"seed {seed}: {len(bad)}/40 false alarms: {bad}"
 
 
 def test_session_of_default_shots_is_none():
     """Three shots simulated with `simulate`'s defaults (a tied rotation law, so each
-    shot's alpha_theta differs), each `none` alone, are `none` together too."""
+    shot's alpha_theta differs), each `none` alone, are `none` together too, and no
+    baseline parameter sits at a bound.  Two sessions, at most one false alarm (the
+    candidates' 1 % look-elsewhere levels make one in a few per cent by design)."""
     seed = _entropy()
     rng = np.random.default_rng(seed)
-    shots = [simulate_series(ShotModel(v0=float(rng.uniform(1.5, 2.1)),
-                                       omega0=float(rng.choice([-1, 1]) * rng.uniform(1, 2.5))),
-                             noise_m=0.002, noise_rad=0.005, seed=int(rng.integers(1 << 30)))
-             for _ in range(3)]
-    rep = discover(shots, n_boot=200)
-    assert rep["verdict"] == "none", (seed, rep["verdict"], rep["warnings"])
-    assert not any("at its bound" in w for w in rep["warnings"]), (seed, rep["warnings"])
+    alarms = []
+    for _ in range(2):
+        shots = [simulate_series(ShotModel(v0=float(rng.uniform(1.5, 2.1)),
+                                           omega0=float(rng.choice([-1, 1])
+                                                        * rng.uniform(1, 2.5))),
+                                 noise_m=0.002, noise_rad=0.005,
+                                 seed=int(rng.integers(1 << 30)))
+                 for _ in range(3)]
+        rep = discover(shots, n_boot=200, seed=int(rng.integers(1 << 30)))
+        assert not any("at its bound" in w for w in rep["warnings"]), (seed, rep["warnings"])
+        if rep["verdict"] != "none":
+            alarms.append((rep["verdict"], rep["warnings"]))
+    assert len(alarms) <= 1, (seed, alarms)
 
 
 def test_position_only_10hz_clockwise_draw_is_none():
     """A 10 Hz x, y series of a clockwise draw, first row 1 s after release: `none`,
-    the spin side read off the curl (clockwise), no spin impulse among the candidates."""
+    the spin side read off the curl (clockwise), no spin impulse among the candidates.
+    Two draws, at most one false alarm (as above); side and impulse on every draw."""
     seed = _entropy()
     rng = np.random.default_rng(seed)
-    m = ShotModel(v0=float(rng.uniform(1.5, 2.2)), omega0=-float(rng.uniform(0.8, 3.0)))
-    s = simulate_series(m, noise_m=0.002, seed=int(rng.integers(1 << 30)),
-                        theta_measured=False,
-                        sampling=Sampling(rate_hz=10, jitter_s=0.003, start_s=1.0))
-    rep = discover(s, n_boot=200)
-    assert rep["verdict"] == "none", (seed, rep["verdict"])
-    assert rep["shots"][0]["spin"] == -1, seed
-    pick = next(f for f in rep["findings"] if f["effect"] == "pick")
-    assert "domega_rad_per_s" not in pick["params"], seed
-    assert "ice_slope" in rep["not_tested"]
+    alarms = []
+    for _ in range(2):
+        m = ShotModel(v0=float(rng.uniform(1.5, 2.2)), omega0=-float(rng.uniform(0.8, 3.0)))
+        s = simulate_series(m, noise_m=0.002, seed=int(rng.integers(1 << 30)),
+                            theta_measured=False,
+                            sampling=Sampling(rate_hz=10, jitter_s=0.003, start_s=1.0))
+        rep = discover(s, n_boot=200, seed=int(rng.integers(1 << 30)))
+        if rep["verdict"] != "none":
+            alarms.append(rep["verdict"])
+        assert rep["shots"][0]["spin"] == -1, seed
+        pick = next(f for f in rep["findings"] if f["effect"] == "pick")
+        assert "domega_rad_per_s" not in pick["params"], seed
+        assert "ice_slope" in rep["not_tested"]
+    assert len(alarms) <= 1, (seed, alarms)
 
 
 def test_position_only_spin_that_stops_first_is_fitted_not_named():

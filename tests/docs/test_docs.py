@@ -127,7 +127,7 @@ def test_docs_links_resolve_and_readme_points_to_docs():
     readme = (ROOT / "README.md").read_text()
     assert "../shared" not in readme and "shared/contract" not in readme
     for doc in ("rig.md", "files.md", "commands.md", "filming.md", "review.md"):
-        assert f"docs/{doc}" in readme or f"(docs/README.md)" in readme, doc
+        assert f"docs/{doc}" in readme or "(docs/README.md)" in readme, doc
 
     def slug(title):
         return re.sub(r"[^\w\- ]", "", title.strip().lower()).replace(" ", "-")
