@@ -280,7 +280,8 @@ class JointModel:
         sig = self.sigma_vector()
         out = v / (sig if v.ndim == 1 else sig[:, None])
         for j, c, sl in self._segments:
-            out[sl] = whiten(out[sl], self.shots[j].noise[c].rho)
+            s = self.shots[j]
+            out[sl] = whiten(out[sl], s.noise[c].rho, np.diff(s.frame[s.use[c]]))
         return out
 
     # --- parameters -----------------------------------------------------------------
