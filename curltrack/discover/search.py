@@ -573,7 +573,10 @@ def _instrument_wide(model: JointModel, flagged: set) -> tuple[set, set]:
     """Segments ``(shot, coord)`` whose noise persists, given those ``flagged`` by their
     own evidence, and the coordinates where that holds session-wide.
 
-    x and y of a shot come from one position fix: one flagged flags both.  The shots of
+    x and y of a shot come from one position fix: one flagged flags both, and its theta,
+    measured by the same instrument on the same frames, with them (theta alone is one
+    segment of ~7 windows: step-like errors in it passed for white noise and its
+    binned-mean test named a clean 10 Hz shot 'unexplained').  The shots of
     one analysis come from one instrument: when the noise persists in most of three or
     more shots it persists in all, and a shot whose few windows said otherwise (one in
     eight under step noise) is not held to the white-noise tests or cut into short
@@ -581,7 +584,9 @@ def _instrument_wide(model: JointModel, flagged: set) -> tuple[set, set]:
     'unexplained'.  Returns (the segments, the coordinates flagged session-wide).
     """
     out = set(flagged)
-    out |= {(j, q) for j, c in flagged if c in POSITION for q in POSITION}
+    segments = {(j, c) for j, c, _ in model.segments}
+    out |= {(j, q) for j, c in flagged if c in POSITION for q in (*POSITION, "theta")
+            if (j, q) in segments}
     session = set()
     for kind in (POSITION, ("theta",)):
         shots = sorted({j for j, c, _ in model.segments if c in kind})

@@ -185,3 +185,28 @@ def test_one_instrument_one_noise_in_a_session(odd_one, crowd):
         for i in odd_segments:   # its own values, per-shot pooling only
             assert pooled[i][0] == own[i][0], (seed, odd, pooled[i], own[i])
         assert sum(b == BLOCK_FRAMES for b in blocks) >= len(blocks) - 2, (seed, blocks)
+
+
+def test_theta_persists_with_its_shots_positions():
+    """x, y and theta of a shot are one instrument's: where its position noise persists
+    (flagged by either coordinate's own evidence) its theta is held to persisting noise
+    too - theta alone is one segment of ~7 windows, and step-like errors in it passed
+    for white noise (a clean 10 Hz shot named 'unexplained' by theta's binned means).
+    A shot whose positions do not persist keeps theta's own evidence."""
+    from curltrack.discover.search import _instrument_wide
+    from curltrack.instrument import Sampling
+    from curltrack.physics import ShotModel
+    from curltrack.simulate import simulate_series
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    series = [simulate_series(ShotModel(v0=rng.uniform(1.4, 2.2), omega0=rng.uniform(0.8, 3)),
+                              noise_m=0.002, noise_rad=0.005, seed=int(rng.integers(1 << 30)),
+                              sampling=Sampling(rate_hz=10.0)) for _ in range(2)]
+    model = JointModel([shot_from_series(s) for s in series], "paper")
+    coord = str(rng.choice(["x", "y"]))
+    out, session = _instrument_wide(model, {(0, coord)})
+    assert {(0, "x"), (0, "y"), (0, "theta")} <= out, (seed, coord, out)
+    assert not any(j == 1 for j, _ in out) and not session, (seed, out, session)
+    out, _ = _instrument_wide(model, {(1, "theta")})
+    assert out == {(1, "theta")}, (seed, out)
