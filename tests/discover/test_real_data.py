@@ -57,12 +57,14 @@ def _false_alarms(noise_class, n_cases, seed, sessions=False, rates=(10.0, 30.0)
 
 @pytest.mark.parametrize("noise_class", NOISE_CLASSES)
 def test_clean_shots_give_none_under_each_noise_class(noise_class):
-    """Fast version: 2 clean single shots per class (10 or 30 Hz -- steps at 10 Hz, the
-    slow tests take both -- with or without theta).  With a false-alarm rate of <= 5 %
-    two alarms in two cases happen < 0.3 % of runs."""
+    """Fast version: 2 clean single shots per class (10 or 30 Hz, with or without
+    theta), the slow tests' set-up.  With a false-alarm rate of <= 5 % two alarms in
+    two cases happen < 0.3 % of runs.  (Under step noise at 10 Hz alone the rate is
+    above that - 5/80, README - and two 10 Hz shots alarmed together in 2 of ~8 CI
+    runs, seeds 4868596420914615096 and 443372549474165855: that set-up is reported
+    as not met, not tested as met.)"""
     seed = _entropy()
-    bad = _false_alarms(noise_class, 2, seed,
-                        rates=(10.0,) if noise_class == "steps" else (10.0, 30.0))
+    bad = _false_alarms(noise_class, 2, seed)
     assert len(bad) <= 1, f"seed {seed}: {bad}"
 
 

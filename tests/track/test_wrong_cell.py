@@ -74,19 +74,30 @@ class _Refused(AssertionError):
     row - but nothing about the cell count was tested either."""
 
 
+#: a case measured in fewer frames tests little of the cell count (it is redrawn)
+MIN_MEASURED = 10
+
+
 def _measurable_case(tmp_path, seed, tries: int = 3):
-    """A lost-lattice case the tracker measures, redrawn from ``seed``'s stream when
-    it refuses one (a fast hand-held shot over a fine lattice can be unmeasurable:
-    'the rock could be measured in only 4 of 90 frames' is an honest answer, and what
-    this test checks is that no measured row is wrong).  Fails after ``tries``."""
+    """A lost-lattice case the tracker measures in >= :data:`MIN_MEASURED` frames,
+    redrawn from ``seed``'s stream when it refuses one or measures fewer (a fast
+    hand-held shot over a fine lattice can be all but unmeasurable: 'the rock could be
+    measured in only 4 of 90 frames' is an honest answer, and 7 of 90 measured frames
+    - seed 405632667, a 0.1 m lattice at 2.78 m/s - another).  Every case drawn is held
+    to no wrong row; fails after ``tries`` without a measurable one."""
     seeds = np.random.default_rng(seed).integers(1 << 32, size=tries - 1)
     refused = []
     for s in [seed, *map(int, seeds)]:
         try:
-            return _lost_lattice_case(tmp_path / str(s), s, size=(960, 540))
+            m, what = _lost_lattice_case(tmp_path / str(s), s, size=(960, 540))
         except _Refused as exc:
             refused.append(str(exc))
-    raise AssertionError(f"every case refused: {refused}")
+            continue
+        _check_no_wrong_row(m, what)
+        if (m["ok"] == 1).sum() >= MIN_MEASURED:
+            return m, what
+        refused.append(f"{what}: only {int((m['ok'] == 1).sum())} frames measured")
+    raise AssertionError(f"no case measurable: {refused}")
 
 
 def _check_no_wrong_row(m, what):
@@ -95,7 +106,7 @@ def _check_no_wrong_row(m, what):
     bad = ok & ((err > 0.010) | (err > 5 * m.sigma_xy))
     assert not bad.any(), (f"{what}: {int(bad.sum())} ok rows wrong, frames "
                            f"{list(m.frame[bad])[:8]}, errors up to {1e3 * err[bad].max():.0f} mm")
-    assert ok.sum() >= 10, f"{what}: only {int(ok.sum())} frames measured"
+    assert ok.sum() >= MIN_MEASURED, f"{what}: only {int(ok.sum())} frames measured"
 
 
 def test_lattice_lost_while_moving_fast_no_wrong_cell(tmp_path):
