@@ -198,12 +198,14 @@ class JointModel:
                     self.free.append(p.name)
         self._rows = [np.logical_or.reduce([s.use[c] for c in COORDS]) for s in shots]
         self._segments = []
+        self._frame_steps = []   # frames between a segment's consecutive rows (whiten)
         i0 = 0
         for j, s in enumerate(shots):
             for c in COORDS:
                 m = int(s.use[c].sum())
                 if m:
                     self._segments.append((j, c, slice(i0, i0 + m)))
+                    self._frame_steps.append(np.diff(s.frame[s.use[c]]))
                     i0 += m
         self.n = i0
 
@@ -279,9 +281,8 @@ class JointModel:
         v = np.asarray(v, dtype=float)
         sig = self.sigma_vector()
         out = v / (sig if v.ndim == 1 else sig[:, None])
-        for j, c, sl in self._segments:
-            s = self.shots[j]
-            out[sl] = whiten(out[sl], s.noise[c].rho, np.diff(s.frame[s.use[c]]))
+        for (j, c, sl), steps in zip(self._segments, self._frame_steps):
+            out[sl] = whiten(out[sl], self.shots[j].noise[c].rho, steps)
         return out
 
     # --- parameters -----------------------------------------------------------------
