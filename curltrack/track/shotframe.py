@@ -40,6 +40,22 @@ MAX_ANGULAR_DECELERATION = 1.5
 #: Smallest cubic coefficient (rad/s^3) of the angle assumed when its quadratic is
 #: extrapolated back: the position's bound over the inertia radius (~0.14 m).
 EXTRAPOLATION_RAD_S3 = EXTRAPOLATION_M_S3 / 0.14
+#: Window (s) of the initial quadratic fit (:func:`initial_state`) that places the
+#: origin and the initial velocity.
+WINDOW_S = 0.8
+#: Longest window (s) of theta0's quadratic, twice the position's: a tracker's angle
+#: errors persist over tenths of a second (a marker's sub-pixel bias, an interlaced
+#: field's), and over 0.8 s the first rows' share of such an error set every angle off
+#: by it (rendered hand-held interlaced 720x480 clips: theta error/sigma RMS up to
+#: 1.5-1.8 from that offset alone; over 1.6 s at most ~1.3 on the same errors).
+ANGLE_WINDOW_S = 1.6
+#: ... but at most this fraction of the time the rock's translation would take to stop
+#: at its initial deceleration (speed / deceleration of the positions' fit): a spin
+#: slows with the rock, faster and faster near the stop: a quadratic over a window of
+#: 0.2 / 0.3 / 0.5 / 0.65 of the real stop time misses theta0 by ~0.01 / 0.05 / 0.25 /
+#: 1 deg (simulated draws of 2.5-10 s).  The linear stop time is about twice the real
+#: one: 0.15 of it keeps the window under ~0.3 of the stop.
+ANGLE_WINDOW_STOP_FRACTION = 0.15
 
 
 #: A gap: a step between measured frames longer than this many typical frame steps.
@@ -150,7 +166,7 @@ def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return out, sure
 
 
-def window_rows(t, window_s: float = 0.8, min_points: int = 8) -> tuple[int, int]:
+def window_rows(t, window_s: float = WINDOW_S, min_points: int = 8) -> tuple[int, int]:
     """(rows, degree) of :func:`initial_state`'s fit: the first ``window_s`` seconds of
     ``t`` (at least ``min_points`` rows), a quadratic - a straight line or a constant
     with too few rows."""
@@ -166,7 +182,18 @@ def _first_late(t) -> bool:
         len(t) < 2 or t[0] > 0.5 * float(np.median(np.diff(t)))))
 
 
-def _window_fit(t, q, window_s: float = 0.8, min_points: int = 8):
+def _angle_window(coef) -> float:
+    """theta0's window (s) from the positions' initial quadratic ``coef`` (3, 2):
+    :data:`ANGLE_WINDOW_S`, shortened to :data:`ANGLE_WINDOW_STOP_FRACTION` of the
+    translation's linear stop time, never below the positions' :data:`WINDOW_S`."""
+    v, a = coef[1], 2.0 * coef[2]
+    speed = float(np.hypot(*v))
+    decel = -float(a @ v) / max(speed, 1e-9)
+    t_stop = speed / decel if decel > 0 else np.inf
+    return float(np.clip(ANGLE_WINDOW_STOP_FRACTION * t_stop, WINDOW_S, ANGLE_WINDOW_S))
+
+
+def _window_fit(t, q, window_s: float = WINDOW_S, min_points: int = 8):
     """The polynomial fit of :func:`initial_state` to the first ``window_s`` seconds.
 
     A quadratic (a straight line / a constant with too few rows) by least squares, with
@@ -195,7 +222,7 @@ def _window_fit(t, q, window_s: float = 0.8, min_points: int = 8):
     return deg, A, coef, qq - A @ coef
 
 
-def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_points: int = 8):
+def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = WINDOW_S, min_points: int = 8):
     """Value and rate at t = 0 from a quadratic fit to the first ``window_s`` seconds.
 
     Parameters
@@ -214,7 +241,7 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = 0.8, min_point
 
 
 def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
-                  window_s: float = 0.8, min_points: int = 8, min_scatter=MIN_SCATTER_M,
+                  window_s: float = WINDOW_S, min_points: int = 8, min_scatter=MIN_SCATTER_M,
                   min_cubic=EXTRAPOLATION_M_S3, noise=None, extrapolated=True) -> float:
     """1 sigma (m; per coordinate) of the value at t = 0 of :func:`initial_state`'s fit.
 
@@ -349,13 +376,14 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
             aidx, th_all, sure_all = more, th_more, sure_more
     at_ok = np.searchsorted(aidx, idx)
     th, th_sure = th_all[at_ok], sure_all[at_ok]
-    (x0, y0, th0), (vx, vy, _) = initial_state(tt, np.column_stack([cc, th]))
-    # (angles after a gap whose turns are not counted may be a whole turn off: theta0
-    # from the frames before it alone when the gap is that early; angles measured
-    # where positions are not count too)
+    deg, _, coef, _ = _window_fit(tt, cc)
+    (x0, y0), (vx, vy) = coef[0], (coef[1] if deg >= 1 else np.zeros(2))
+    # theta0 over its own window (_angle_window); angles after a gap whose turns are
+    # not counted may be a whole turn off: theta0 from the frames before it alone when
+    # the gap is that early; angles measured where positions are not count too
+    window = _angle_window(coef) if deg == 2 else WINDOW_S
     ts, ths = t[aidx][sure_all], th_all[sure_all]
-    if (not sure_all.all() or aidx.size > idx.size) and ts.size:
-        th0 = float(initial_state(ts, ths)[0][0])
+    th0 = float(initial_state(ts, ths, window)[0][0]) if ts.size else 0.0
     origin = np.array([x0, y0])
     disp = cc - origin
     reach = np.hypot(*disp.T)
@@ -381,7 +409,7 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     # every angle is taken from theta0, itself a fit: its error is every row's (the
     # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
     # under a 0.9 deg sigma)
-    theta0_sigma = _origin_sigma(ts, ths, MAX_ANGULAR_DECELERATION,
+    theta0_sigma = _origin_sigma(ts, ths, MAX_ANGULAR_DECELERATION, window_s=window,
                                  min_scatter=MIN_SCATTER_RAD, min_cubic=EXTRAPOLATION_RAD_S3,
                                  noise=_frame_noise(ts, ths), extrapolated=_first_late(ts)) \
         if ts.size else float("inf")
