@@ -448,7 +448,8 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
                     for c, q in (("x", x), ("y", y)))
         s_xy = (None, None) if s_x is None or s_y is None else (np.maximum(s_x, s_y),) * 2
         tied = fit_translation(t, x, y, t_tr, fixed_stop, False, s_xy, path, warnings)
-        tied = _honest_errors(tied, s_xy, [t, t], "translation", "x, y", path, warnings)
+        tied = _honest_errors(tied, s_xy, [t, t], "translation", "x, y", path, warnings,
+                              hint=None if has_theta.any() else _curl_end_hint)
         fits["xy"] = tied
         try:
             free = fit_translation(t, x, y, t_tr, fixed_stop, True, s_xy, path, warnings,
@@ -604,7 +605,7 @@ def small_sample_factor(n: int, p: int, tau: float) -> float:
     return float(absorbed * student)
 
 
-def _honest_errors(res, sigma, times, label, coords, path, warnings):
+def _honest_errors(res, sigma, times, label, coords, path, warnings, hint=None):
     """Scale a fit's covariance for residuals that are correlated (n / tau effective
     points, :func:`small_sample_factor`) and warn when the fit is a misfit against the
     measured noise.
@@ -612,6 +613,8 @@ def _honest_errors(res, sigma, times, label, coords, path, warnings):
     lmfit already scales the covariance by the reduced chi-square (the residuals'
     scatter, not the assumed noise); correlated residuals (a misfit, or an instrument
     whose errors persist) carry fewer independent points than rows, which this adds.
+    ``hint(chunks)`` -> str: a likely cause, from the residuals per coordinate, for the
+    misfit warning ("" when none).
     """
     chunks = np.array_split(res.residual, len(times))  # one block per coordinate
     tau = max(correlation_time(c) for c in chunks)
@@ -632,8 +635,25 @@ def _honest_errors(res, sigma, times, label, coords, path, warnings):
             f"~{tau * dt:.2g} s: the paper's model misses something here, or the "
             f"instrument's errors persist; 1-sigma errors are scaled by the residuals' "
             f"scatter and correlation (x{np.sqrt(max(redchi, 1.0) * inflation):.3g} of the "
-            f"white-noise errors); run `curltrack discover` to find what")
+            f"white-noise errors){hint(chunks) if hint else ''}; run `curltrack discover` "
+            "to find what")
     return res
+
+
+#: A position-only misfit whose x residuals' mean square is over this many times y's is
+#: across the path: the curl, not the slide.
+CURL_MISFIT_RATIO = 4.0
+
+
+def _curl_end_hint(chunks) -> str:
+    """The likely cause of a position-only translation misfit that sits in x."""
+    mx, my = (float(np.mean(np.square(c))) for c in chunks)
+    if mx <= CURL_MISFIT_RATIO * max(my, 1e-300):
+        return ""
+    return (f". It is in x, across the path ({np.sqrt(mx / max(my, 1e-300)):.2g}x y's "
+            "residuals): with no rotation measured, a curl that ends before the rock stops "
+            "(a spin that stopped first) looks like this - the paper's x(t) assumes the rock "
+            "turns until it stops, and `discover` fits where the curl ends")
 
 
 def _rms(res) -> float:

@@ -256,3 +256,36 @@ def test_plot_curves_in_the_points_frame(monkeypatch, tmp_path):
         tc, xc = ln.get_data()
         off = np.abs(np.interp(tp, tc, xc) - xp)
         assert np.median(off) < 0.003, (seed, ln.get_label(), float(np.median(off)))
+
+
+def test_position_only_misfit_names_a_curl_that_ends_early():
+    """Position-only draws whose spin stops at 40-70 % of the slide (the curl ends with
+    it): the misfit warning says the misfit is across the path and what looks like it;
+    a friction patch (a misfit along the path) is not given that cause."""
+    from curltrack.instrument import Sampling
+    from curltrack.physics import Effect, ShotModel
+    from curltrack.physics import closed_form as cf
+    from curltrack.simulate import simulate_series
+
+    seed = _entropy()
+    rng = np.random.default_rng(seed)
+    m = ShotModel(v0=float(rng.uniform(1.6, 2.2)), omega0=1.0)
+    t_tr = cf.stop_time_translation(m.v0, m.phi_y, m.alpha_y)
+    t_rot = float(rng.uniform(0.4, 0.7)) * t_tr
+    unit = cf.stop_time_rotation(1.0, m.phi_theta, m.alpha_theta_value)
+    w0 = float(rng.choice([-1, 1])) * (t_rot / unit) ** (1.0 / (1.0 - m.phi_theta))
+    sampling = Sampling(rate_hz=float(rng.choice([10.0, 30.0])))
+    s = simulate_series(ShotModel(v0=m.v0, omega0=w0, alpha_theta=m.alpha_theta_value),
+                        noise_m=0.002, seed=int(rng.integers(1 << 30)),
+                        theta_measured=False, sampling=sampling)
+    said = [w for w in fit_series(s).warnings if "misfit" in w]
+    assert len(said) == 1 and "curl that ends before the rock stops" in said[0], \
+        (seed, said)
+    a = float(rng.uniform(4.0, 8.0))
+    patch = simulate_series(ShotModel(v0=m.v0, omega0=float(rng.uniform(1.0, 2.0))),
+                            [Effect("friction_patch", {"y_start_m": a, "y_end_m": a + 3,
+                                                       "factor": 1.6})],
+                            noise_m=0.002, seed=int(rng.integers(1 << 30)),
+                            theta_measured=False, sampling=sampling)
+    said = [w for w in fit_series(patch).warnings if "misfit" in w]
+    assert len(said) == 1 and "curl that ends" not in said[0], (seed, said)
