@@ -51,5 +51,8 @@ def discover(
                  rig=load_rig(rig) if rig is not None else None, extensions=extensions)
     write_report(report, output, plot)
     typer.echo(f"verdict: {report['verdict']}  ({output})")
+    if report["verdict"] == "none" and report.limits_text():
+        typer.echo(f"not seen, and smaller than this could not have been: "
+                   f"{report.limits_text()}")
     if report.get("extension"):
         typer.echo(f"extension: {report['extension']['summary']}")

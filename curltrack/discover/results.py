@@ -47,6 +47,12 @@ class Finding:
     not_named_because : list of str or None
         For a supported candidate, what keeps it from being named (a parameter at its
         bound, a coordinate's RMS made worse); empty when nothing does.
+    detection_limit : dict or None
+        Per size parameter, the smallest size (distance from its null value, in its
+        unit) that the candidate's threshold lets be seen, over its scan's locations:
+        ``median``, ``min``, ``max``, ``unit``.  A `none` says nothing about effects of
+        that size or smaller; the linearised scan's, so a lower bound on what is named
+        (the refit and the held-out test ask more).
     where : dict or None
         Where the unexplained misfit sits (``unexplained`` only).
     fit : object
@@ -76,6 +82,7 @@ class Finding:
     structure_after: dict | None = None
     not_named_because: list | None = None
     extension: bool | None = None
+    detection_limit: dict | None = None
     where: dict | None = None
     fit: object = field(default=None, compare=False, repr=False)
 
@@ -99,6 +106,8 @@ class Finding:
             out["not_named_because"] = self.not_named_because
         if self.extension:
             out["extension"] = True
+        if self.detection_limit:
+            out["detection_limit"] = self.detection_limit
         out["evidence"] = self.evidence
         return out
 
@@ -155,6 +164,20 @@ class DiscoveryReport(Mapping):
     def success(self) -> bool:
         """A cause was named (the verdict is an effect)."""
         return self.verdict not in ("none", "unexplained")  # named or extended
+
+    def limits_text(self) -> str:
+        """Each candidate's detection limits in words (medians over its scan's places):
+        what a ``none`` cannot speak for (:attr:`Finding.detection_limit`)."""
+        parts = []
+        for f in self.findings:
+            sizes = []
+            for name, v in (f.detection_limit or {}).items():
+                size = f"{name} - {v['null']:g}" if v["null"] else name
+                unit = f" {v['unit']}" if v["unit"] else ""
+                sizes.append(f"|{size}| {v['median']:.2g}{unit}")
+            if sizes:
+                parts.append(f"{f.effect} " + ", ".join(sizes))
+        return "; ".join(parts)
 
     @property
     def bic(self) -> float:

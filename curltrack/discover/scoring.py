@@ -71,6 +71,47 @@ def effect_bases(J0, effect_cols, rel_tol: float = 1e-4):
     return out
 
 
+def detection_limits(J0, effect_cols, threshold: float, k, n: int) -> list:
+    """The smallest size of each effect parameter that its threshold lets be seen.
+
+    Alone at a scan location, a size ``s`` of one parameter (its whitened column ``e``
+    per unit, the part orthogonal to the baseline ``e_perp``) gains chi-square
+    ``s^2 |e_perp|^2`` on noise-free data; its delta-BIC clears ``threshold`` from
+    ``s_min = sqrt((threshold + k log n) / |e_perp|^2)``.  An effect that size or
+    smaller cannot be told from the noise - a ``none`` says nothing about it - and one
+    a few times larger clears the threshold in most noise draws (about half at
+    ``s_min``).  The bootstrap's threshold and the columns scale alike with the noise,
+    so the limit is in the parameter's own units whatever the noise's level.
+
+    Parameters
+    ----------
+    J0 : (n, p) array
+        Whitened baseline Jacobian.
+    effect_cols : list of (n, m) arrays
+        Whitened effect columns (per unit of each size parameter) at each location.
+    threshold : float
+        The candidate's delta-BIC threshold.
+    k : int
+        Parameters one location and one size add (the BIC penalty).
+
+    Returns
+    -------
+    list of (m,) arrays
+        Per location, each parameter's ``s_min`` (inf where the baseline absorbs it).
+    """
+    Q0 = orth_basis(J0)
+    need = max(threshold + k * np.log(n), 0.0)
+    out = []
+    for E in effect_cols:
+        Et = E - Q0 @ (Q0.T @ E)
+        g = np.sum(Et * Et, axis=0)
+        # (a direction inside the baseline's span up to round-off is not seen at all)
+        g = np.where(g > 1e-8 * np.maximum(np.sum(E * E, axis=0), 1e-300), g, 0.0)
+        with np.errstate(divide="ignore"):
+            out.append(np.where(g > 0, np.sqrt(need / np.where(g > 0, g, 1.0)), np.inf))
+    return out
+
+
 def scan_gain(bases, r):
     """Linearised chi-square gain of each scan location for residual vector(s) ``r``.
 

@@ -82,6 +82,9 @@ class CandidateScore:
     #: fit's covariance rescaled to them (None: not profiled)
     profile: dict | None = None
     cov_profile: np.ndarray | None = None
+    #: per size parameter: the median, least and largest over the scan's locations of
+    #: the smallest size its threshold lets be seen (:func:`scoring.detection_limits`)
+    limits: dict | None = None
     _scale: np.ndarray | None = None
     _refine: tuple | None = None
     _scan: tuple | None = None
@@ -246,6 +249,16 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, rng,
     score = CandidateScore(cand.name, lin, lin, thr, None, loc, note=cand.note, k=k,
                            extension=cand.extension, per_shot=cand.per_shot)
     score._scan = (sub_cols, ks)  # for the threshold under the candidate's own noise
+    if not cand.extension and cand.size:
+        lim = np.array(scoring.detection_limits(fit0.J, cols, thr["threshold"],
+                                                len(cand.location) + 1, n))
+        score.limits = {}
+        for j, p in enumerate(cand.size):
+            v = lim[:, j][np.isfinite(lim[:, j])]
+            if v.size:
+                score.limits[p.name] = {"median": float(np.median(v)), "min": float(v.min()),
+                                        "max": float(v.max()), "unit": p.unit,
+                                        "null": float(p.null)}
     score._blocks = [b for _, b in blocks]
     if sum(b.shape[1] for b in bases) == 0:
         score.note += "; not identifiable with these shots (degenerate with the baseline)"
