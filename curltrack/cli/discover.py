@@ -52,7 +52,8 @@ def discover(
     write_report(report, output, plot)
     typer.echo(f"verdict: {report['verdict']}  ({output})")
     if report["verdict"] == "none" and report.limits_text():
-        typer.echo(f"not seen, and smaller than this could not have been: "
+        typer.echo(f"not seen; below these sizes it could not have been (median over "
+                   f"each effect's places, REPORT.json has the range): "
                    f"{report.limits_text()}")
     if report.get("extension"):
         typer.echo(f"extension: {report['extension']['summary']}")

@@ -36,6 +36,9 @@ def test_cli_writes_report_and_plot(tmp_path):
     assert top["effect"] == "pick"
     assert set(top["rms_before"]) == {"x", "y", "theta"}
     assert top["rms_after"]["x"] < top["rms_before"]["x"]
+    # a named effect lies above the smallest size its threshold lets be seen
+    lim = top["detection_limit"]
+    assert max(abs(top["params"][p]) / lim[p]["min"] for p in lim) > 1, (lim, top["params"])
     assert not list(tmp_path.glob(".REPORT*"))  # no temporary files left behind
 
 
