@@ -21,6 +21,17 @@ _UNEXPLAINED_KEYS = ("effect", "delta_bic", "rms_before", "rms_after", "heldout_
                      "heldout_rmse_after", "params", "params_err", "where", "evidence")
 
 
+def format_limits(limits) -> str:
+    """A finding's ``detection_limit`` mapping in words: ``|name - null| median unit``
+    per size parameter ("" for none)."""
+    parts = []
+    for name, v in (limits or {}).items():
+        size = f"{name} - {v['null']:g}" if v.get("null") else name
+        unit = f" {v['unit']}" if v.get("unit") else ""
+        parts.append(f"|{size}| {v['median']:.2g}{unit}")
+    return ", ".join(parts)
+
+
 @dataclass(frozen=True)
 class Finding:
     """One candidate effect as measured (or the ``unexplained`` residual structure).
@@ -168,16 +179,8 @@ class DiscoveryReport(Mapping):
     def limits_text(self) -> str:
         """Each candidate's detection limits in words (medians over its scan's places):
         what a ``none`` cannot speak for (:attr:`Finding.detection_limit`)."""
-        parts = []
-        for f in self.findings:
-            sizes = []
-            for name, v in (f.detection_limit or {}).items():
-                size = f"{name} - {v['null']:g}" if v["null"] else name
-                unit = f" {v['unit']}" if v["unit"] else ""
-                sizes.append(f"|{size}| {v['median']:.2g}{unit}")
-            if sizes:
-                parts.append(f"{f.effect} " + ", ".join(sizes))
-        return "; ".join(parts)
+        return "; ".join(f"{f.effect} {format_limits(f.detection_limit)}"
+                         for f in self.findings if f.detection_limit)
 
     @property
     def bic(self) -> float:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..series import Series
+from ..discover.results import format_limits
 
 __all__ = ["build_page", "write_review", "video_frame_count"]
 
@@ -163,11 +164,13 @@ def _report_html(report, notes) -> str:
              "named" if f.get("supported") else "",
              ", ".join(f"{k} = {v:.4g}" for k, v in (f.get("params") or {}).items()
                        if isinstance(v, (int, float))),
+             format_limits(f.get("detection_limit")),
              f.get("evidence", "")) for f in report.get("findings", [])]
     head = f"<p><b>verdict: {html.escape(str(report.get('verdict')))}</b></p>"
     marks = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
     return head + (f"<ul>{marks}</ul>" if marks else "") + _table(
-        [("effect", "ΔBIC", "", "parameters", "evidence"), *rows])
+        [("effect", "ΔBIC", "", "parameters", "not seeable below (median over places)",
+          "evidence"), *rows])
 
 
 _JS = """
