@@ -51,9 +51,9 @@ def discover(
                  rig=load_rig(rig) if rig is not None else None, extensions=extensions)
     write_report(report, output, plot)
     typer.echo(f"verdict: {report['verdict']}  ({output})")
-    if report["verdict"] == "none" and report.limits_text():
+    limits = report.limits_text() if report["verdict"] == "none" else ""
+    if limits:
         typer.echo(f"not seen; below these sizes it could not have been (median over "
-                   f"each effect's places, REPORT.json has the range): "
-                   f"{report.limits_text()}")
+                   f"each effect's places, REPORT.json has the range): {limits}")
     if report.get("extension"):
         typer.echo(f"extension: {report['extension']['summary']}")

@@ -107,8 +107,7 @@ def detection_limits(J0, effect_cols, threshold: float, k, n: int) -> list:
         g = np.sum(Et * Et, axis=0)
         # (a direction inside the baseline's span up to round-off is not seen at all)
         g = np.where(g > 1e-8 * np.maximum(np.sum(E * E, axis=0), 1e-300), g, 0.0)
-        with np.errstate(divide="ignore"):
-            out.append(np.where(g > 0, np.sqrt(need / np.where(g > 0, g, 1.0)), np.inf))
+        out.append(np.where(g > 0, np.sqrt(need / np.where(g > 0, g, 1.0)), np.inf))
     return out
 
 
