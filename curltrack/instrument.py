@@ -21,6 +21,18 @@ Noise classes (:data:`NOISE_CLASSES`), each with a 1-sigma scale ``sigma`` (m or
     Heavy-tailed errors: Student t with 3 degrees of freedom scaled to a standard
     deviation of sigma, and 1 % outliers at 10 sigma (2 cm for sigma = 2 mm) of random sign.
 
+Two more (:data:`OTHER_NOISE_CLASSES`), errors that swing faster than any motion of the
+rock, for testing that discovery does not take them for physics:
+
+``vibration``
+    A camera on a pole or boom that vibrates: a sinusoid of 1.5-6 Hz (uniform, random
+    phase) of standard deviation 0.9 sigma, plus white noise (0.44 sigma): sigma in all.
+``quantised``
+    A file that rounds its values (a track written in centimetres): white noise of
+    sigma / 2, then rounding to a quantum of sigma sqrt(12) (1 cm for sigma = 2.9 mm):
+    1.1 sigma in all (the rounding's sigma and the noise's sigma / 2).  The error then depends on the value: it holds while the
+    rock moves by less than a quantum, and sweeps a sawtooth while it moves on.
+
 Sampling (:class:`Sampling`): any rate, Gaussian timestamp jitter, gaps (stretches with
 no rows, up to ``max_gap_s``), and a first row after release (``start_s``).  The
 ``frame`` column counts nominal sample slots, so a gap shows as a jump in ``frame``.
@@ -36,10 +48,14 @@ import numpy as np
 from .errors import ParameterError
 
 NOISE_CLASSES = ("white", "ar1", "steps", "heavy")
+OTHER_NOISE_CLASSES = ("vibration", "quantised")
+ALL_NOISE_CLASSES = NOISE_CLASSES + OTHER_NOISE_CLASSES
 #: typical scales (position m, angle rad) of each class: a tracked video's 2 mm / 0.3
-#: degrees; a position instrument's steps of 3-15 cm (an angle instrument's ~3 degrees)
+#: degrees; a position instrument's steps of 3-15 cm (an angle instrument's ~3 degrees);
+#: values written to the centimetre (and to the degree)
 TYPICAL_SCALE = {"white": (0.002, 0.005), "ar1": (0.002, 0.005), "steps": (0.05, 0.05),
-                 "heavy": (0.002, 0.005)}
+                 "heavy": (0.002, 0.005), "vibration": (0.002, 0.005),
+                 "quantised": (0.01 / math.sqrt(12.0), math.radians(1.0) / math.sqrt(12.0))}
 #: steps: how long an error level holds (s) and its size range in units of sigma
 STEP_HOLD_S = (0.5, 3.0)
 STEP_LEVEL = (0.5, 1.5)
@@ -47,22 +63,25 @@ STEP_LEVEL = (0.5, 1.5)
 HEAVY_DOF = 3.0
 OUTLIER_FRACTION = 0.01
 OUTLIER_SIGMA = 10.0
+#: vibration: frequency range (Hz) and the sinusoid's share of the variance
+VIBRATION_HZ = (1.5, 6.0)
+VIBRATION_SHARE = 0.81
 
 
 def _check_class(kind: str) -> str:
-    if kind not in NOISE_CLASSES:
+    if kind not in ALL_NOISE_CLASSES:
         raise ParameterError(f"unknown noise class {kind!r}; expected one of "
-                             f"{', '.join(NOISE_CLASSES)}", where="noise_class")
+                             f"{', '.join(ALL_NOISE_CLASSES)}", where="noise_class")
     return kind
 
 
 def draw_noise(kind: str, t, sigma: float, rng: np.random.Generator,
-               corr_time_s: float = 0.05) -> np.ndarray:
+               corr_time_s: float = 0.05, values=None) -> np.ndarray:
     """Measurement errors of one coordinate at times ``t`` (s).
 
     Parameters
     ----------
-    kind : {"white", "ar1", "steps", "heavy"}
+    kind : {"white", "ar1", "steps", "heavy", "vibration", "quantised"}
         The noise class (see the module docstring).
     t : array of float
         Increasing sample times (s); irregular spacing is honoured.
@@ -71,6 +90,8 @@ def draw_noise(kind: str, t, sigma: float, rng: np.random.Generator,
     rng : numpy Generator
     corr_time_s : float
         ``ar1`` only: correlation time (s).
+    values : array of float, optional
+        ``quantised`` only (required): the true values the errors are added to.
 
     Returns
     -------
@@ -99,6 +120,17 @@ def draw_noise(kind: str, t, sigma: float, rng: np.random.Generator,
         levels = rng.choice([-1.0, 1.0], holds.size) * rng.uniform(*STEP_LEVEL, holds.size)
         idx = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, holds.size - 1)
         return sigma * levels[idx] + rng.normal(0.0, sigma / 5.0, n)
+    if kind == "vibration":
+        f = rng.uniform(*VIBRATION_HZ)
+        wave = math.sqrt(2.0 * VIBRATION_SHARE) * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
+        return sigma * (wave + rng.normal(0.0, math.sqrt(1.0 - VIBRATION_SHARE), n))
+    if kind == "quantised":
+        if values is None or np.shape(values) != t.shape:
+            raise ParameterError("the quantised class needs the true values, one per time",
+                                 where="values")
+        q = sigma * math.sqrt(12.0)
+        v = np.asarray(values, dtype=float)
+        return np.round((v + rng.normal(0.0, sigma / 2.0, n)) / q) * q - v
     # heavy: t with 3 dof has variance 3; rescale to sigma
     out = rng.standard_t(HEAVY_DOF, n) * sigma / math.sqrt(HEAVY_DOF / (HEAVY_DOF - 2.0))
     bad = rng.random(n) < OUTLIER_FRACTION

@@ -64,7 +64,7 @@ def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
         Seed of the noise generator (numpy default_rng).
     tail_s : float
         Seconds of rest recorded after both motions have stopped.
-    noise_class : {"white", "ar1", "steps", "heavy"}
+    noise_class : {"white", "ar1", "steps", "heavy", "vibration", "quantised"}
         How the instrument errs (:mod:`curltrack.instrument`).
     sampling : Sampling, optional
         Irregular sampling (rate, jitter, gaps, first row after release); overrides
@@ -139,9 +139,9 @@ def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
         if noise_rad > 0:
             theta += rng.normal(0.0, noise_rad, n)
     else:
-        x += draw_noise(noise_class, t, noise_m, rng)
-        y += draw_noise(noise_class, t, noise_m, rng)
-        theta += draw_noise(noise_class, t, noise_rad, rng)
+        x += draw_noise(noise_class, t, noise_m, rng, values=x)
+        y += draw_noise(noise_class, t, noise_m, rng, values=y)
+        theta += draw_noise(noise_class, t, noise_rad, rng, values=theta)
     if not theta_measured:
         theta[:] = np.nan
     data = pd.DataFrame({"frame": frame, "t": t, "x": x, "y": y, "theta": theta,

@@ -44,6 +44,30 @@ def test_noise_classes_have_their_documented_structure():
         draw_noise("pink", t30, 0.002, rng)
 
 
+def test_vibration_and_quantised_classes():
+    """vibration: sigma in all, and one spectral line in 1.5-6 Hz holding 81 % of it;
+    quantised: values on the quantum's grid, the error 1.1 sigma, depending on the value."""
+    seed = _seed()
+    rng = np.random.default_rng(seed)
+    t = np.arange(0, 200, 1 / 30)
+    v = draw_noise("vibration", t, 0.002, rng)
+    assert np.std(v) == pytest.approx(0.002, rel=0.05), seed
+    power = np.abs(np.fft.rfft(v)) ** 2
+    f = np.fft.rfftfreq(t.size, 1 / 30)
+    peak = int(np.argmax(power[1:])) + 1
+    assert 1.5 - 0.01 <= f[peak] <= 6.0 + 0.01, (seed, f[peak])
+    line = power[max(peak - 3, 1):peak + 4].sum() / power[1:].sum()
+    assert line == pytest.approx(0.81, abs=0.05), (seed, line)
+    truth = np.cumsum(rng.uniform(0, 0.004, t.size))     # a rock moving 0-12 cm/s
+    q = draw_noise("quantised", t, 0.003, rng, values=truth)
+    quantum = 0.003 * np.sqrt(12)
+    steps = (truth + q) / quantum
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-9, err_msg=str(seed))
+    assert np.std(q) == pytest.approx(0.003 * np.sqrt(1.25), rel=0.05), seed
+    with pytest.raises(ParameterError, match="true values"):
+        draw_noise("quantised", t, 0.003, rng)
+
+
 def test_sampling_jitter_gaps_and_late_start():
     seed = _seed()
     rng = np.random.default_rng(seed)

@@ -100,7 +100,7 @@ def simulate(
     fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate (default: rig or 30)."),
     tail_s: float = typer.Option(1.0, "--tail-s", help="Rest recorded after the stop (s)."),
     noise_class: str = typer.Option("white", "--noise-class",
-                                    help="white | ar1 | steps | heavy."),
+                                    help="white | ar1 | steps | heavy | vibration | quantised."),
     jitter_s: float = typer.Option(0.0, "--jitter-s", help="Timestamp jitter, 1 sigma (s)."),
     gaps: int = typer.Option(0, "--gaps", help="Number of gaps with no rows."),
     max_gap_s: float = typer.Option(2.0, "--max-gap-s", help="Longest gap (s)."),
@@ -121,7 +121,7 @@ def simulate(
     from ..errors import ParameterError
     from ..rig import default_rig, load_rig
     from ..series import sidecar_path, write_series
-    from ..instrument import NOISE_CLASSES, Sampling, session_models
+    from ..instrument import ALL_NOISE_CLASSES, Sampling, session_models
     from ..simulate import simulate_series
 
     outputs = [output] if shots == 1 else \
@@ -132,8 +132,8 @@ def simulate(
         _usage(f"expected >= 1, got {shots}", param_hint="--shots")
     if shots > 1 and model != "paper":
         _usage("sessions use the paper model", param_hint="--shots")
-    if noise_class not in NOISE_CLASSES:
-        _usage(f"expected one of {', '.join(NOISE_CLASSES)}, got {noise_class!r}",
+    if noise_class not in ALL_NOISE_CLASSES:
+        _usage(f"expected one of {', '.join(ALL_NOISE_CLASSES)}, got {noise_class!r}",
                param_hint="--noise-class")
     if model not in ("paper", "segment"):
         _usage(f"expected paper or segment, got {model!r}", param_hint="--model")

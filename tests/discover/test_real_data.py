@@ -13,7 +13,8 @@ from typer.testing import CliRunner
 
 from curltrack.cli import app
 from curltrack.discover import discover
-from curltrack.instrument import NOISE_CLASSES, TYPICAL_SCALE, Sampling, session_models
+from curltrack.instrument import (ALL_NOISE_CLASSES, NOISE_CLASSES, TYPICAL_SCALE, Sampling,
+                                  session_models)
 from curltrack.physics import ShotModel
 from curltrack.series import write_series
 from curltrack.simulate import simulate_series
@@ -55,7 +56,7 @@ def _false_alarms(noise_class, n_cases, seed, sessions=False, rates=(10.0, 30.0)
     return bad
 
 
-@pytest.mark.parametrize("noise_class", NOISE_CLASSES)
+@pytest.mark.parametrize("noise_class", ALL_NOISE_CLASSES)
 def test_clean_shots_give_none_under_each_noise_class(noise_class):
     """Fast version: 2 clean single shots per class (10 or 30 Hz, with or without
     theta), the slow tests' set-up.  With a false-alarm rate of <= 5 % two alarms in
@@ -69,7 +70,7 @@ def test_clean_shots_give_none_under_each_noise_class(noise_class):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("noise_class", NOISE_CLASSES)
+@pytest.mark.parametrize("noise_class", ALL_NOISE_CLASSES)
 def test_false_alarm_rate_per_noise_class(noise_class):
     """>= 40 clean single shots per class: <= 5 % (2 of 40) say anything but none."""
     seed = _entropy()
