@@ -102,3 +102,63 @@ def test_range_errors(clip):
         list(iter_frames(path, start=4, end=4))
     with pytest.raises(VideoError, match="out of range"):
         read_frame(path, n)
+
+
+def _woven_clip(path, rng, n=24, size=(320, 240), shift_px=None, order="tff"):
+    """Frames of a textured scene panning by ``shift_px`` (x, y) per field: woven from two
+    exposures (``order`` "tff"/"bff") or one (``order`` None), written as progressive
+    H.264 with no field flags."""
+    av = pytest.importorskip("av")
+    w, h = size
+    big = cv2.GaussianBlur(rng.uniform(0, 255, (h + 200, w + 200)).astype(np.float32), (0, 0), 2)
+    out = av.open(str(path), "w")
+    st = out.add_stream("libx264", rate=30)
+    st.width, st.height, st.pix_fmt = w, h, "yuv420p"
+    st.options = {"crf": "16"}
+
+    def view(k):  # the scene at exposure k (half frames)
+        M = np.float32([[1, 0, -50 - k * shift_px[0]], [0, 1, -50 - k * shift_px[1]]])
+        return cv2.warpAffine(big, M, (w, h), flags=cv2.INTER_CUBIC)
+
+    for i in range(n):
+        if order is None:
+            img = view(2 * i)
+        else:
+            first, second = view(2 * i), view(2 * i + 1)
+            img = first.copy()
+            top, bottom = (first, second) if order == "tff" else (second, first)
+            img[0::2], img[1::2] = top[0::2], bottom[1::2]
+        bgr = cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_GRAY2BGR)
+        for p in st.encode(av.VideoFrame.from_ndarray(bgr, format="bgr24")):
+            out.mux(p)
+    for p in st.encode():
+        out.mux(p)
+    out.close()
+
+
+def test_interlaced_content_in_a_progressive_stream_is_found(tmp_path):
+    """Fields woven from two exposures are found whatever the flags say, with their
+    order; one exposure per frame, or a still camera, is not taken for them."""
+    from curltrack.video import field_motion
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    speed = rng.uniform(0.6, 3.0)             # px per field, in a random direction
+    a = rng.uniform(0, 2 * np.pi)
+    shift = (speed * np.cos(a), speed * np.sin(a))
+    order = str(rng.choice(["tff", "bff"]))
+    what = f"seed {seed}: {order}, shift {shift[0]:.2f}, {shift[1]:.2f} px per field"
+    _woven_clip(tmp_path / "woven.mp4", rng, shift_px=shift, order=order)
+    fm = field_motion(tmp_path / "woven.mp4")
+    assert fm.woven and fm.order == order, (what, fm)
+    info = probe_video(tmp_path / "woven.mp4")
+    assert info.interlaced and info.fields_from_content, (what, info)
+    assert info.top_field_first == (order == "tff") and info.decoder == "pyav", what
+    assert "flagged progressive" in info.describe(), what
+    fr = list(iter_frames(tmp_path / "woven.mp4", end=2, fields=True, field_order=order))
+    assert [(f.index, f.field) for f in fr] == [(0, 0), (0, 1), (1, 0), (1, 1)], what
+    _woven_clip(tmp_path / "one.mp4", rng, shift_px=shift, order=None)
+    assert not field_motion(tmp_path / "one.mp4").woven, what
+    assert not probe_video(tmp_path / "one.mp4").interlaced, what
+    _woven_clip(tmp_path / "still.mp4", rng, shift_px=(0.0, 0.0), order=order)
+    assert not probe_video(tmp_path / "still.mp4").interlaced, what
