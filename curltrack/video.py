@@ -228,16 +228,20 @@ def _av_probe(path) -> dict:
 
 
 #: frames a stream flagged progressive is checked over for interlaced content
-FIELD_CHECK_FRAMES = 60
-#: a frame's two fields (half-height images of its even and odd lines) moved apart by
-#: at least this (field px) once the half-line between them is removed: progressive
-#: frames of the camera sweep's rendered clips stayed under 0.15 px in 90 % of frames,
-#: woven fields of a moving camera went 0.3-7 px apart
-FIELD_SHIFT_PX = 0.3
-#: frames read as woven when at least this share of them shows such a shift...
-FIELD_MOVING_SHARE = 0.2
-#: ... and the field order is the one at least this share of them vote for
-FIELD_ORDER_VOTES = 0.8
+FIELD_CHECK_FRAMES = 90
+#: frames whose image moves by at least this (field px) from one frame to the next say
+#: how the fields move; at least FIELD_MIN_MOVING of them are needed
+FIELD_MOTION_PX = 1.0
+FIELD_MIN_MOVING = 5
+#: ... and shifts over this (px) are left out: a lattice moved by over half its cell
+#: reads as another shift
+FIELD_MAX_SHIFT_PX = 8.0
+#: woven fields move by half the image's motion per frame (slope +-0.5; measured 0.26-0.53,
+#: less where the motion is vertical: half-height fields alias and pull phase
+#: correlation's vertical shift towards whole lines); one exposure's do not move
+#: (|slope| <= 0.005 on every progressive clip of the camera sweep).  Read as woven at
+#: |slope| >= this and 5 standard errors
+FIELD_SLOPE = 0.15
 #: phase correlation's peak (0-1) below which a frame pair says nothing (a featureless
 #: or blank frame: its shift is noise); textured frames of the sweep's clips gave 0.85-1
 FIELD_MIN_RESPONSE = 0.5
@@ -245,57 +249,59 @@ FIELD_MIN_RESPONSE = 0.5
 
 @dataclass(frozen=True)
 class FieldMotion:
-    """How a frame's two fields move against each other (:func:`field_motion`).
+    """How a frame's two fields move with the image (:func:`field_motion`).
 
     Attributes
     ----------
     n_frames : int
-        Frame pairs examined.
+        Frame pairs examined (textured enough to correlate).
     n_moving : int
-        Frames whose two fields were :data:`FIELD_SHIFT_PX` or more apart.
-    order : {"tff", "bff"} or None
-        The exposure order the moving frames vote for (top = even lines first), None
-        when no order has :data:`FIELD_ORDER_VOTES` of the votes.
-    votes : float
-        Share of the votes the leading order has.
-    median_shift_px : float
-        Median shift between the fields of the moving frames (field px).
+        Those whose image moved by :data:`FIELD_MOTION_PX` or more.
+    slope : float
+        Shift from the top field to the bottom field per shift of the image from one
+        frame to the next: +0.5 woven top field first, -0.5 bottom first, 0 one exposure.
+    slope_err : float
+        Its standard error (inf when not measured).
     """
 
     n_frames: int
     n_moving: int
-    order: str | None
-    votes: float
-    median_shift_px: float
+    slope: float
+    slope_err: float
 
     @property
     def woven(self) -> bool:
-        """Two exposures woven into each frame (the fields move apart)."""
-        return self.n_frames > 0 and self.n_moving >= max(5, FIELD_MOVING_SHARE * self.n_frames)
+        """Two exposures woven into each frame (the fields move apart with the image)."""
+        return (self.n_moving >= FIELD_MIN_MOVING and abs(self.slope) >= FIELD_SLOPE
+                and abs(self.slope) >= 5.0 * self.slope_err)
+
+    @property
+    def order(self) -> str | None:
+        """"tff" or "bff" when :attr:`woven`, else None."""
+        return ("tff" if self.slope > 0 else "bff") if self.woven else None
 
     def describe(self) -> str:
-        return (f"its two fields lie {self.median_shift_px:.1f} px apart in {self.n_moving} "
-                f"of {self.n_frames} frames (one exposure's fields coincide), and "
-                f"{100 * self.votes:.0f} % of those put the "
-                f"{'top' if self.order == 'tff' else 'bottom'} field first")
+        return (f"its bottom field is shifted from its top field by {self.slope:+.2f} +- "
+                f"{self.slope_err:.2f} of the image's motion per frame over {self.n_moving} "
+                f"moving frames (one exposure's fields: 0; woven, "
+                f"{'top' if self.slope > 0 else 'bottom'} field first: "
+                f"{'+' if self.slope > 0 else '-'}0.5)")
 
 
 def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None:
     """Do a video's frames hold two exposures (interlaced fields), whatever its flags?
 
-    Each frame's even and odd lines are two half-height images.  Taken at one instant
-    (progressive) they coincide but for the half line between them; woven from two
-    exposures half a frame apart they are shifted by the image's motion in that time
-    (a moving camera's, the lattice's).  The shifts come from phase correlation of a
-    central crop; the order of the exposures from the next frame: with the top field
-    first, the shift from a frame's bottom field to the next frame's top field goes the
-    same way as the one from its top to its bottom field (the image moves on), and with
-    the bottom field first the shift from the top field to the next frame's bottom
-    field does.  Shifts over 4 px do not vote (a lattice shifted by over half its cell
-    reads as another shift).  A still camera shows nothing: no motion, no evidence.
-
-    Frame pairs whose correlation peak is under :data:`FIELD_MIN_RESPONSE` (nothing to
-    see) are left out.
+    Each frame's even and odd lines are two half-height images (the top and bottom
+    fields).  Taken at one instant (progressive) they coincide - up to a fixed vertical
+    offset that the image's fine vertical detail sets (half a line for smooth content,
+    less where thin threads alias) - whatever the image does.  Woven from two exposures
+    half a frame period apart, the second is shifted from the first by half the image's
+    motion per frame (a moving camera's).  So the top-to-bottom shift of a frame is
+    regressed on the shift of its top field to the next frame's (phase correlation of a
+    central crop; a vertical intercept takes the fixed offset): slope +0.5 top field
+    first, -0.5 bottom first, 0 progressive.  A still camera gives no leverage, and no
+    evidence.  Frame pairs whose correlation peak is under :data:`FIELD_MIN_RESPONSE`
+    (nothing to see) are left out.
 
     Returns
     -------
@@ -309,7 +315,7 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
         import av
     except ImportError:
         return None
-    pairs = []
+    rows = []
     try:
         with av.open(str(path)) as c:
             st = c.streams.video[0]
@@ -328,32 +334,35 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
                 if win is None:
                     win = cv2.createHanningWindow((cw, ch), cv2.CV_32F)
                 if prev is not None:
-                    # the bottom field's lines sit half a field line below the top's
-                    s1, r1 = cv2.phaseCorrelate(prev[0], prev[1], win)
-                    s2, r2 = cv2.phaseCorrelate(prev[1], top, win)
-                    s3, r3 = cv2.phaseCorrelate(prev[0], bottom, win)
-                    if min(r1, r2, r3) >= FIELD_MIN_RESPONSE:
-                        d1 = np.subtract(s1, (0.0, -0.5))
-                        d2 = np.subtract(s2, (0.0, 0.5))
-                        pairs.append((*d1, *d2, *s3))
+                    d1, r1 = cv2.phaseCorrelate(prev[0], prev[1], win)
+                    d, r2 = cv2.phaseCorrelate(prev[0], top, win)
+                    if min(r1, r2) >= FIELD_MIN_RESPONSE:
+                        rows.append((*d1, *d))
                 prev = (top, bottom)
     except Exception:  # noqa: BLE001 - any FFmpeg failure: the caller's checks report it
         return None
-    if not pairs:
-        return None
-    p = np.array(pairs)
-    shift = np.hypot(p[:, 0], p[:, 1])
-    moving = shift >= FIELD_SHIFT_PX
-    voting = moving & (shift <= 4.0)
-    tff = np.sum(p[voting, 0] * p[voting, 2] + p[voting, 1] * p[voting, 3] > 0)
-    bff = np.sum(-(p[voting, 0] * p[voting, 4] + p[voting, 1] * p[voting, 5]) > 0)
-    n_votes = int(voting.sum())
-    lead = max(tff, bff) / n_votes if n_votes else 0.0
-    order = None
-    if n_votes and lead >= FIELD_ORDER_VOTES and tff != bff:
-        order = "tff" if tff > bff else "bff"
-    return FieldMotion(len(p), int(moving.sum()), order, float(lead),
-                       float(np.median(shift[moving])) if moving.any() else 0.0)
+    p = np.array(rows).reshape(-1, 4)
+    step = np.hypot(p[:, 2], p[:, 3])
+    use = (step >= FIELD_MOTION_PX) & (step <= FIELD_MAX_SHIFT_PX)
+    n_moving = int(use.sum())
+    if n_moving < FIELD_MIN_MOVING:
+        return FieldMotion(len(p), n_moving, 0.0, np.inf)
+    q = p[use]
+    # d1x = s Dx ; d1y = c + s Dy: least squares, then again without 4-MAD outliers
+    y = np.concatenate([q[:, 0], q[:, 1]])
+    X = np.zeros((2 * n_moving, 2))
+    X[:, 0] = np.concatenate([q[:, 2], q[:, 3]])
+    X[n_moving:, 1] = 1.0
+    keep = np.ones(y.size, bool)
+    for _ in range(2):
+        beta = np.linalg.lstsq(X[keep], y[keep], rcond=None)[0]
+        res = y - X @ beta
+        mad = 1.4826 * np.median(np.abs(res[keep])) + 1e-3
+        keep = np.abs(res) <= 4.0 * mad
+    dof = max(int(keep.sum()) - 2, 1)
+    s2 = float(np.sum(res[keep] ** 2)) / dof
+    cov = s2 * np.linalg.pinv(X[keep].T @ X[keep])
+    return FieldMotion(len(p), n_moving, float(beta[0]), float(np.sqrt(max(cov[0, 0], 0.0))))
 
 
 def _file_stamp(path) -> tuple[int, int]:
@@ -424,13 +433,6 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
         if av_info and not av_info["interlaced"] and fps <= 31.0:
             fm = _field_motion_of_file(str(path), *_file_stamp(path))
             if fm is not None and fm.woven:
-                if fm.order is None:
-                    raise VideoError(
-                        f"the stream is flagged progressive, but its frames hold two "
-                        f"exposures ({fm.describe()}; no order has "
-                        f"{100 * FIELD_ORDER_VOTES:.0f} %): the field order cannot be "
-                        f"told, and woven fields of a moving rock cannot be measured as "
-                        f"one frame", path=path)
                 av_info = {**av_info, "interlaced": True,
                            "top_field_first": fm.order == "tff"}
                 from_content = fm.describe()

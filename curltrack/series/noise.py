@@ -355,8 +355,8 @@ def isolated_outliers(r, k: float = OUTLIER_K) -> np.ndarray:
     and on the window sums :func:`residual_structure` measures the noise with; a smooth
     misfit (any effect of the physics) or an instrument's step that holds for a few
     samples does not look like them.  A row is an outlier when its residual differs from
-    the running median of the ``2 OUTLIER_HALF_WINDOW + 1`` rows around it by more than
-    ``k`` sigma of the noise: the rows' own (the residuals are in units of the noise
+    the running median of the ``2 OUTLIER_HALF_WINDOW + 1`` rows around it, and from the
+    mean of the two rows on either side, by more than ``k`` sigma of the noise: the rows' own (the residuals are in units of the noise
     :func:`estimate_noise` measured), or more if the differences' robust spread says
     so - not less, since on a steep trend the running median is the row itself and the
     differences vanish.  Correlated noise is followed by the median, which makes the
@@ -382,4 +382,15 @@ def isolated_outliers(r, k: float = OUTLIER_K) -> np.ndarray:
         return np.zeros(r.size, bool)
     d = r - median_filter(r, size=2 * OUTLIER_HALF_WINDOW + 1, mode="mirror")
     scale = max(robust_sigma(d) / _MEDIAN5_SPREAD, 1.0)
-    return np.abs(d) > k * scale
+    # alone: also as far from the mean of the (up to) two rows on each side.  Next to an
+    # instrument's step the running median takes the step's level, and a 3.4-sigma row
+    # there stood 6.4 sigma off it; a glitch stands off both sides
+    n = r.size
+    left, right = d.copy(), d.copy()      # (the ends: one side only)
+    left[2:] = r[2:] - 0.5 * (r[:-2] + r[1:-1])
+    left[1] = r[1] - r[0]
+    right[:-2] = r[:-2] - 0.5 * (r[1:-1] + r[2:])
+    right[n - 2] = r[n - 2] - r[n - 1]
+    lim = k * scale
+    return (np.abs(d) > lim) & (left * d > 0) & (right * d > 0) & \
+        (np.abs(left) > lim) & (np.abs(right) > lim)
