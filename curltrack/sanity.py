@@ -16,6 +16,8 @@ speed |d(x, y)/dt|     <= :data:`MAX_SPEED`        x, y in mm (> :data:`MM_SPEED
                                                    speed / 1000 plausible)
 spin |d theta/dt|      <= :data:`MAX_SPIN`         theta in degrees (spin / 57.3 plausible)
 theta steps            no jump of ~2 pi            theta wrapped to [0, 2 pi) or (-pi, pi]
+direction of travel    within :data:`MAX_SKEW_DEG` the rink's or an image's frame, not the
+                       of +y                       shot frame (+y along the initial velocity)
 =====================  ==========================  ==========================================
 
 A delivery leaves the hand at 1-4.5 m/s (a hard take-out) and turns at 0.2-4 rad/s (a
@@ -52,6 +54,13 @@ MAX_SPIN = 25.0
 DISCOVER_MAX_ROWS = 4000
 #: Time over which speeds and spins are measured (s).
 RATE_WINDOW_S = 0.1
+#: Largest angle (deg) of the initial direction of travel from +y: the fit's deskew
+#: angle ``psi`` takes up to 0.5 rad (28.6 deg); a series at 40 deg fitted lambda_y 1.66
+#: +- 0.69 for 1.840 (with a misfit warning), at 90 deg (a rink frame) 1.00 at its bound.
+MAX_SKEW_DEG = 25.0
+#: The initial direction is read over the first this share of the travel (and at
+#: least the first 0.3 m): the curl bends a draw by a few degrees over its length.
+DIRECTION_SHARE = 0.15
 
 
 def check_units(series) -> list[str]:
@@ -107,7 +116,27 @@ def check_units(series) -> list[str]:
                         "contract's x, y are in metres")
         warnings.append(f"x/y: a speed of {speed:.3g} m/s is beyond a curling rock's "
                         f"(<= {MAX_SPEED:g} m/s): check the units of x, y and t")
+    _check_direction(xy, fail)   # (after the units: x alone in mm turns the path too)
     return warnings
+
+
+def _check_direction(xy, fail) -> None:
+    """The shot frame: +y along the initial velocity.  A series in the rink's frame or
+    an image's (travel along x, or -y) is an error naming the direction."""
+    dist = np.hypot(*(xy - xy[0]).T)
+    travel = float(dist.max())
+    if travel < 0.5:    # (a pure rotation, or too short to say)
+        return
+    k = int(np.argmax(dist >= max(DIRECTION_SHARE * travel, 0.3)))
+    step = xy[k] - xy[0]
+    angle = float(np.degrees(np.arctan2(step[0], step[1])))   # from +y, towards +x
+    if abs(angle) > MAX_SKEW_DEG:
+        u = step / np.hypot(*step)
+        fail("x/y", f"the rock starts along ({u[0]:+.2f}, {u[1]:+.2f}), {abs(angle):.0f} deg "
+                    f"from +y (from x, y = {xy[0, 0]:.2f}, {xy[0, 1]:.2f} m): the contract's "
+                    f"x, y are in the shot frame (+y along the initial velocity, +x to its "
+                    f"right; the fit takes up to {MAX_SKEW_DEG:g} deg of skew): rotate the "
+                    f"positions into it")
 
 
 def _check_theta(d, fail, warnings) -> None:

@@ -40,13 +40,25 @@ def _wrong(s: Series, mistake: str) -> Series:
         d["theta"] = np.angle(np.exp(1j * d["theta"]))
     elif mistake == "epoch":
         d["t"] += 1.7e9
+    elif mistake == "rink_frame":   # the rink's axes: turned 30-330 deg, origin elsewhere
+        rng = np.random.default_rng(len(d))
+        _turn(d, float(rng.uniform(30, 330)), rng.uniform(-20, 20, 2))
     meta = {k: v for k, v in s.meta.items() if not k.startswith(("t_stop", "stop_frame"))}
     return Series(d, meta)
 
 
 CASES = {"degrees": ("theta", "degrees"), "mm": ("x/y", "millimetres"),
          "ms": ("'t'", "milliseconds"), "wrapped": ("theta", "wrapped"),
-         "wrapped_pm_pi": ("theta", "wrapped"), "epoch": ("'t'", "clock time")}
+         "wrapped_pm_pi": ("theta", "wrapped"), "epoch": ("'t'", "clock time"),
+         "rink_frame": ("x/y", "shot frame")}
+
+
+def _turn(d, deg, offset=(0.0, 0.0)):
+    """Turn the positions of ``d`` (in place) by ``deg`` about the origin, then shift."""
+    a = np.radians(deg)
+    x, y = d["x"].to_numpy(), d["y"].to_numpy()
+    d["x"] = offset[0] + np.cos(a) * x - np.sin(a) * y
+    d["y"] = offset[1] + np.sin(a) * x + np.cos(a) * y
 
 
 @pytest.fixture(scope="module")
@@ -84,6 +96,22 @@ def test_right_units_never_flagged(seed):
                                         rng.uniform(3.0, 18.0)][kind]
         s = _shot(int(rng.integers(2**31)), v0=v0, omega0=omega0)
         assert check_units(s) == [], (seed, i, v0, omega0)
+
+
+def test_skewed_throw_within_the_fits_range_is_not_flagged(seed):
+    """A throw up to 20 deg off +y (a camera or instrument not aligned with the line of
+    delivery) is the fit's skew angle, not a mistake: never flagged, and fitted."""
+    from curltrack.fit import fit_series
+
+    rng = np.random.default_rng(seed)
+    s = _shot(seed, v0=rng.uniform(1.2, 2.2))
+    d = s.data.copy()
+    deg = float(rng.uniform(-20, 20))
+    _turn(d, deg, rng.uniform(-5, 5, 2))
+    turned = Series(d, s.meta)
+    assert check_units(turned) == [], (seed, deg)
+    res = fit_series(turned)
+    assert abs(res.values["skew_deg"] + deg) < 0.5, (seed, deg, res.values["skew_deg"])
 
 
 def test_one_row_per_second_in_ms_also_caught():
