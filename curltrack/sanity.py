@@ -18,6 +18,8 @@ spin |d theta/dt|      <= :data:`MAX_SPIN`         theta in degrees (spin / 57.3
 theta steps            no jump of ~2 pi            theta wrapped to [0, 2 pi) or (-pi, pi]
 direction of travel    within :data:`MAX_SKEW_DEG` the rink's or an image's frame, not the
                        of +y                       shot frame (+y along the initial velocity)
+curl against the spin  never (a warning)           x mirrored (an image's axes, y down) or
+                                                   theta clockwise
 =====================  ==========================  ==========================================
 
 A delivery leaves the hand at 1-4.5 m/s (a hard take-out) and turns at 0.2-4 rad/s (a
@@ -61,6 +63,11 @@ MAX_SKEW_DEG = 25.0
 #: The initial direction is read over the first this share of the travel (and at
 #: least the first 0.3 m): the curl bends a draw by a few degrees over its length.
 DIRECTION_SHARE = 0.15
+#: A curl against the spin is reported when the rock ends at least this far (m) and
+#: this share of its travel off its initial line, having turned at least this (rad)
+CURL_MIN_M = 0.1
+CURL_MIN_SHARE = 0.02
+CURL_MIN_TURN_RAD = 1.5
 
 
 def check_units(series) -> list[str]:
@@ -117,26 +124,54 @@ def check_units(series) -> list[str]:
         warnings.append(f"x/y: a speed of {speed:.3g} m/s is beyond a curling rock's "
                         f"(<= {MAX_SPEED:g} m/s): check the units of x, y and t")
     _check_direction(xy, fail)   # (after the units: x alone in mm turns the path too)
+    if has_theta.sum() >= 3:
+        _check_curl_side(xy, d["theta"].to_numpy(float), has_theta, warnings)
     return warnings
 
 
 def _check_direction(xy, fail) -> None:
     """The shot frame: +y along the initial velocity.  A series in the rink's frame or
     an image's (travel along x, or -y) is an error naming the direction."""
-    dist = np.hypot(*(xy - xy[0]).T)
-    travel = float(dist.max())
+    u, travel = _initial_direction(xy)
     if travel < 0.5:    # (a pure rotation, or too short to say)
         return
-    k = int(np.argmax(dist >= max(DIRECTION_SHARE * travel, 0.3)))
-    step = xy[k] - xy[0]
-    angle = float(np.degrees(np.arctan2(step[0], step[1])))   # from +y, towards +x
+    angle = float(np.degrees(np.arctan2(u[0], u[1])))   # from +y, towards +x
     if abs(angle) > MAX_SKEW_DEG:
-        u = step / np.hypot(*step)
         fail("x/y", f"the rock starts along ({u[0]:+.2f}, {u[1]:+.2f}), {abs(angle):.0f} deg "
                     f"from +y (from x, y = {xy[0, 0]:.2f}, {xy[0, 1]:.2f} m): the contract's "
                     f"x, y are in the shot frame (+y along the initial velocity, +x to its "
                     f"right; the fit takes up to {MAX_SKEW_DEG:g} deg of skew): rotate the "
                     f"positions into it")
+
+
+def _initial_direction(xy):
+    """(unit vector, travel m) of the first :data:`DIRECTION_SHARE` of the path."""
+    dist = np.hypot(*(xy - xy[0]).T)
+    travel = float(dist.max())
+    k = int(np.argmax(dist >= max(DIRECTION_SHARE * travel, 0.3)))
+    step = xy[k] - xy[0]
+    norm = float(np.hypot(*step))
+    return (step / norm if norm > 0 else np.array([0.0, 1.0])), travel
+
+
+def _check_curl_side(xy, theta, has_theta, warnings) -> None:
+    """Every curling rock curls the way it spins (clockwise to the right): a rock that
+    ends well off its initial line on the other side says the axes are mirrored."""
+    u, travel = _initial_direction(xy)
+    if travel < 0.5:
+        return
+    lateral = float((xy[-1] - xy[0]) @ np.array([u[1], -u[0]]))   # + right of travel
+    th = theta[has_theta]
+    turn = float(th[-1] - th[0])
+    if (abs(lateral) >= max(CURL_MIN_M, CURL_MIN_SHARE * travel)
+            and abs(turn) >= CURL_MIN_TURN_RAD and lateral * turn > 0):
+        warnings.append(
+            f"x/theta: the rock ends {abs(lateral):.2f} m to the "
+            f"{'right' if lateral > 0 else 'left'} of its initial line while it turns "
+            f"{'counter-clockwise' if turn > 0 else 'clockwise'} ({turn:+.1f} rad): curling "
+            f"rocks curl the way they spin - is x mirrored (the contract's +x is to the "
+            f"right of the travel, seen from above) or theta clockwise (the contract's is "
+            f"counter-clockwise)? A slope across the sheet can do it too")
 
 
 def _check_theta(d, fail, warnings) -> None:

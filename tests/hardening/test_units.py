@@ -114,6 +114,19 @@ def test_skewed_throw_within_the_fits_range_is_not_flagged(seed):
     assert abs(res.values["skew_deg"] + deg) < 0.5, (seed, deg, res.values["skew_deg"])
 
 
+@pytest.mark.parametrize("flip", ["x", "theta"])
+def test_curl_against_the_spin_is_warned(seed, flip):
+    """x mirrored (an image's axes) or theta clockwise: the rock curls against its spin,
+    which no curling rock does - a warning naming both conventions."""
+    rng = np.random.default_rng(seed)
+    s = _shot(seed, v0=rng.uniform(1.5, 2.2), omega0=rng.choice([-1, 1]) * rng.uniform(0.8, 3))
+    assert check_units(s) == [], seed
+    d = s.data.copy()
+    d[flip] = -d[flip]
+    w = check_units(Series(d, s.meta))
+    assert len(w) == 1 and "curl the way they spin" in w[0], (seed, w)
+
+
 def test_one_row_per_second_in_ms_also_caught():
     """t in ms at a coarse rate: the span, not the step, tells."""
     s = _wrong(_shot(3), "ms")
