@@ -50,6 +50,8 @@ def discover(
     report = run([str(p) for p in shots], baseline=baseline.value, seed=seed,
                  rig=load_rig(rig) if rig is not None else None, extensions=extensions)
     write_report(report, output, plot)
+    for w in report.get("warnings") or []:
+        typer.echo(f"warning: {w}", err=True)
     typer.echo(f"verdict: {report['verdict']}  ({output})")
     limits = report.limits_text() if report["verdict"] == "none" else ""
     if limits:

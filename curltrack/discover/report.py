@@ -249,7 +249,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
             best_fit, best_model_name, best_params = fit0, None, {}
         else:
             verdict = sc.name
-    elif before.structured or any(_at_bound(f) for _, f in blocked):
+    elif before.structured or base_bound or any(_at_bound(f) for _, f in blocked):
         # an extension that clears its threshold but is not chosen (its residuals stay
         # structured, or another explains it alike) does not turn residuals that look
         # like noise into 'unexplained': under the real-data noise classes that would
@@ -257,8 +257,13 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
         # blocked only because it fits some coordinate worse (evidence against it:
         # under step-like noise 1 clean shot in 40 was 'unexplained' that way); one
         # blocked at a parameter bound (something stronger than its range) does.
+        # (a baseline at a bound does not describe the shots at all - a mirrored shot's
+        # curl against its spin held a_T at 0 with 10 cm residuals, which the persisting-
+        # noise scale then took for the instrument's: 'none' was a confident wrong answer)
         verdict = "unexplained"
         unexplained = dict(before.where or {}, after_model="baseline")
+        if base_bound:
+            unexplained["baseline_at_bound"] = base_bound
         if len(supported) > 1:   # extensions that explain it alike: no one description
             unexplained["ambiguous"] = [sc.name for sc, _ in supported]
         if blocked:

@@ -216,3 +216,27 @@ def test_theta_persists_with_its_shots_positions():
     assert not any(j == 1 for j, _ in out) and not session, (seed, out, session)
     out, _ = _instrument_wide(model, {(1, "theta")})
     assert out == {(1, "theta")}, (seed, out)
+
+
+def test_a_baseline_at_its_bound_is_never_none():
+    """A shot whose curl goes against its spin (x mirrored: an image's axes) holds the
+    baseline's a_T at its bound 0 with ~10 cm residuals in x.  The persisting-noise
+    scale reads those as the instrument's, so nothing is 'structured' - but a baseline
+    that cannot describe the shot is 'unexplained', with the bound, never 'none'."""
+    from dataclasses import replace
+
+    from curltrack.discover import discover
+    from curltrack.physics import ShotModel
+    from curltrack.simulate import simulate_series
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    s = simulate_series(ShotModel(v0=rng.uniform(1.6, 2.2),
+                                  omega0=rng.choice([-1, 1]) * rng.uniform(1.0, 2.5)),
+                        noise_m=0.002, noise_rad=0.005, seed=int(rng.integers(1 << 30)))
+    d = s.data.copy()
+    d["x"] = -d["x"]
+    rep = discover([replace(s, data=d)], n_boot=100, seed=1)
+    assert rep["verdict"] == "unexplained", (seed, rep["verdict"])
+    assert rep["unexplained"]["baseline_at_bound"], seed
+    assert any("curl the way they spin" in w for w in rep["warnings"]), seed
