@@ -42,8 +42,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-KINDS = ("ladder", "handheld", "camcorder", "phone", "action", "action-strong",
-         "action-fisheye")
+KINDS = ("ladder", "handheld", "camcorder", "camcorder-reencoded", "phone", "action",
+         "action-strong", "action-fisheye")
 SEED = 20261124
 #: Set-ups drawn per kind until one renders (a phone set-up with variable frame timing
 #: failed the writer's last-frame check: the next draw of the kind is used then).
@@ -75,6 +75,12 @@ def draw(kind: str, seed: int, scale: float, attempt: int = 0):
         summary = dict(setup.summary, kind=kind, lens=f"{cam.lens} k1={cam.k1:.2f} "
                                                        f"k2={cam.k2:.2f}")
         setup = dataclasses.replace(setup, config=cfg, summary=summary)
+    if kind == "camcorder-reencoded":   # the camcorder's file, its interlace flags lost
+        enc = dataclasses.replace(setup.config.encoding, interlace_flags=False)
+        cfg = dataclasses.replace(setup.config, encoding=enc)
+        setup = dataclasses.replace(setup, config=cfg,
+                                    summary=dict(setup.summary, kind=kind,
+                                                 scan="interlaced, flags lost"))
     return setup
 
 
@@ -104,8 +110,11 @@ def _decode_cpu(video) -> float:
     from curltrack.video import iter_frames, probe_video
 
     info = probe_video(video)
+    order = (("tff" if info.top_field_first else "bff") if info.fields_from_content
+             else None)
     t0 = time.process_time()
-    for _ in iter_frames(video, decoder=info.decoder, fields=info.interlaced):
+    for _ in iter_frames(video, decoder=info.decoder, fields=info.interlaced,
+                         field_order=order):
         pass
     return time.process_time() - t0
 

@@ -108,6 +108,11 @@ def render(
                                             "PyAV codecs)."),
     rotation: int = typer.Option(0, "--rotation", help="Display rotation tag (deg: 0, 90, "
                                  "180, 270; PyAV codecs)."),
+    interlace_flags: bool = typer.Option(True, "--interlace-flags/--no-interlace-flags",
+                                         help="--scan interlaced: flag the stream "
+                                         "interlaced (PyAV codecs), or write the woven "
+                                         "frames as progressive (a re-encoding that "
+                                         "lost the flags)."),
     shadow: float = typer.Option(0.0, "--shadow", help="Depth (0-0.9) of a person's soft "
                                  "shadow walking beside the rock; 0 = none."),
     glare: float = typer.Option(10.0, "--glare", help="Peak level (0-255) of the lamps' "
@@ -164,7 +169,8 @@ def render(
                           readout_s=readout_ms / 1e3, frame_jitter_s=frame_jitter_ms / 1e3,
                           drop_rate=drop_rate, auto_exposure=auto_exposure,
                           white_balance=white_balance)
-    enc = EncodingConfig(codec=codec, bitrate_bps=bitrate, rotation_deg=rotation)
+    enc = EncodingConfig(codec=codec, bitrate_bps=bitrate, rotation_deg=rotation,
+                         interlace_flags=interlace_flags)
     ice = IceStyle(house_at_m=house_at_m, sheet_lines=sheet_lines)
     cfg = RenderConfig(width=width, height=height, fps=fps, camera=cam, heading_deg=heading_deg,
                        blur_subframes=blur_subframes, shutter=shutter, read_noise=noise,

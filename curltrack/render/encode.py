@@ -49,12 +49,18 @@ class EncodingConfig:
         columns are the sensor's (PyAV codecs only).
     preset : str
         x264/x265 speed preset, default ``"veryfast"``.
+    interlace_flags : bool
+        Interlaced video (``SensorConfig.scan``): flag the stream interlaced with its
+        field order (default; PyAV codecs).  False writes the woven frames as progressive
+        video, as a re-encoding that dropped the flags does (its 4:2:0 colour then
+        mixes the two fields).
     """
 
     codec: str = "mp4v"
     bitrate_bps: float | None = None
     rotation_deg: int = 0
     preset: str = "veryfast"
+    interlace_flags: bool = True
 
     def validate(self) -> None:
         """Raise ParameterError naming the first bad field."""

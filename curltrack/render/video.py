@@ -79,7 +79,9 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
     with atomic_path(video_path) as tmp:
         sen = prod.sensor
         writer = open_writer(tmp, prod.fps, (prod.cfg.width, prod.cfg.height),
-                             prod.cfg.encoding, sen.field_order if sen.interlaced else None,
+                             prod.cfg.encoding,
+                             sen.field_order if sen.interlaced and prod.cfg.encoding.interlace_flags
+                             else None,
                              prod.cam_cfg.pixel_aspect)
         written = 0
         from ..progress import progress_bar

@@ -74,24 +74,32 @@ def weave_interlaced(src, dst, top_first=True, crf=18, flagged=True):
     out.close()
 
 
-def test_interlaced_h264_is_tracked_per_field(tmp_path):
+def woven_draw(tmp_path, rng, name, **weave):
+    """(truth, video, motion): 120 fields of a random draw (ladder or hand-held camera)
+    rendered at 59.94 Hz, 720x480, and woven into ``name`` (:func:`weave_interlaced`)."""
     from curltrack.render import CameraConfig, RenderConfig, render_video
+
+    sim = simulate_series(ShotModel(v0=rng.uniform(0.8, 2.0), omega0=rng.uniform(0.5, 2.5)),
+                          fps=2 * NTSC)
+    sim = replace(sim, data=sim.data.iloc[:120].reset_index(drop=True))
+    motion = str(rng.choice(["ladder", "handheld"]))
+    prog = tmp_path / "fields.mp4"
+    truth = render_video(sim, default_rig(), prog, config=RenderConfig(
+        width=720, height=480, fps=2 * NTSC, camera=CameraConfig(motion=motion)),
+        seed=int(rng.integers(1 << 30)))
+    video = tmp_path / name
+    weave_interlaced(prog, video, **weave)
+    return truth, video, motion
+
+
+def test_interlaced_h264_is_tracked_per_field(tmp_path):
     from curltrack.track import track_video
     from curltrack.video import probe_video
 
     seed = int(np.random.SeedSequence().entropy % (1 << 32))
     rng = np.random.default_rng(seed)
     rig = default_rig()
-    sim = simulate_series(ShotModel(v0=rng.uniform(0.8, 2.0), omega0=rng.uniform(0.5, 2.5)),
-                          fps=2 * NTSC)
-    sim = replace(sim, data=sim.data.iloc[:120].reset_index(drop=True))
-    motion = str(rng.choice(["ladder", "handheld"]))
-    prog = tmp_path / "fields.mp4"
-    truth = render_video(sim, rig, prog, config=RenderConfig(
-        width=720, height=480, fps=2 * NTSC, camera=CameraConfig(motion=motion)),
-        seed=int(rng.integers(1 << 30)))
-    video = tmp_path / "interlaced.mp4"
-    weave_interlaced(prog, video)
+    truth, video, motion = woven_draw(tmp_path, rng, "interlaced.mp4")
     info = probe_video(video)
     what = f"seed {seed}, {motion}: {info.describe()}"
     assert info.interlaced and info.decoder == "pyav", what
@@ -168,24 +176,15 @@ def test_interlaced_footage_whose_flags_were_lost_is_measured_per_field(tmp_path
     shared by the two fields, so each field's colours hold the other exposure's too;
     each field is moved by half the fields' disagreement - measured 3.0-5.1 mm RMS on
     six draws (3.6-5.5 without that) where the flagged file gives ~1 mm.)"""
-    from curltrack.render import CameraConfig, RenderConfig, render_video
     from curltrack.track import track_video
     from curltrack.video import probe_video
 
     seed = int(np.random.SeedSequence().entropy % (1 << 32))
     rng = np.random.default_rng(seed)
     rig = default_rig()
-    sim = simulate_series(ShotModel(v0=rng.uniform(0.8, 2.0), omega0=rng.uniform(0.5, 2.5)),
-                          fps=2 * NTSC)
-    sim = replace(sim, data=sim.data.iloc[:120].reset_index(drop=True))
-    motion = str(rng.choice(["ladder", "handheld"]))
     top_first = bool(rng.random() < 0.5)
-    prog = tmp_path / "fields.mp4"
-    truth = render_video(sim, rig, prog, config=RenderConfig(
-        width=720, height=480, fps=2 * NTSC, camera=CameraConfig(motion=motion)),
-        seed=int(rng.integers(1 << 30)))
-    video = tmp_path / "reencoded.mp4"
-    weave_interlaced(prog, video, top_first=top_first, flagged=False)
+    truth, video, motion = woven_draw(tmp_path, rng, "reencoded.mp4", top_first=top_first,
+                                      flagged=False)
     info = probe_video(video)
     what = f"seed {seed}, {motion}, top first {top_first}: {info.describe()}"
     assert info.interlaced and info.fields_from_content, what
