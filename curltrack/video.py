@@ -233,9 +233,9 @@ FIELD_CHECK_FRAMES = 90
 #: how the fields move; at least FIELD_MIN_MOVING of them are needed
 FIELD_MOTION_PX = 1.0
 FIELD_MIN_MOVING = 5
-#: ... and shifts over this (px) are left out: a lattice moved by over half its cell
-#: reads as another shift
-FIELD_MAX_SHIFT_PX = 8.0
+#: ... and motions over this (px per frame) are left out (a lattice moved by over half
+#: its cell reads as another shift; such pairs mostly correlate weakly, too)
+FIELD_MAX_SHIFT_PX = 24.0
 #: woven fields move by half the image's motion per frame (slope +-0.5; measured 0.26-0.53,
 #: less where the motion is vertical: half-height fields alias and pull phase
 #: correlation's vertical shift towards whole lines); one exposure's do not move
@@ -297,9 +297,11 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
     less where thin threads alias) - whatever the image does.  Woven from two exposures
     half a frame period apart, the second is shifted from the first by half the image's
     motion per frame (a moving camera's).  So the top-to-bottom shift of a frame is
-    regressed on the shift of its top field to the next frame's (phase correlation of a
-    central crop; a vertical intercept takes the fixed offset): slope +0.5 top field
-    first, -0.5 bottom first, 0 progressive.  A still camera gives no leverage, and no
+    regressed on the image's motion from its top field to the next frame's (phase
+    correlation of a central crop; where the lattice aliases that step, as two steps
+    through the bottom field, whose fixed offsets cancel; a vertical intercept takes the
+    offset of the top-to-bottom shift): slope +0.5 top field first, -0.5 bottom first,
+    0 progressive.  A still camera gives no leverage, and no
     evidence.  Frame pairs whose correlation peak is under :data:`FIELD_MIN_RESPONSE`
     (nothing to see) are left out.
 
@@ -334,9 +336,14 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
                 if win is None:
                     win = cv2.createHanningWindow((cw, ch), cv2.CV_32F)
                 if prev is not None:
+                    # the frame's motion top -> next top; where the lattice aliases that
+                    # (a weak peak), as two shorter steps through the bottom field
                     d1, r1 = cv2.phaseCorrelate(prev[0], prev[1], win)
-                    d, r2 = cv2.phaseCorrelate(prev[0], top, win)
-                    if min(r1, r2) >= FIELD_MIN_RESPONSE:
+                    d, r = cv2.phaseCorrelate(prev[0], top, win)
+                    if r < FIELD_MIN_RESPONSE:
+                        d2, r = cv2.phaseCorrelate(prev[1], top, win)
+                        d = (d1[0] + d2[0], d1[1] + d2[1])
+                    if min(r1, r) >= FIELD_MIN_RESPONSE:
                         rows.append((*d1, *d))
                 prev = (top, bottom)
     except Exception:  # noqa: BLE001 - any FFmpeg failure: the caller's checks report it

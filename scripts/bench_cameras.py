@@ -9,8 +9,9 @@ the README (``--from`` an earlier ``--json`` instead of measuring).
 
 One set-up per camera kind, drawn by :func:`curltrack.render.sweep.draw_setup` from a
 fixed seed (``--seed``; the set-ups are the same in every run), plus ``action-strong``
-(a radial lens with k1 forced to -0.35..-0.30) and ``action-fisheye`` (the equidistant
-fisheye).  Each is rendered with its truth, tracked with the rig written beside it - plus
+(a radial lens with k1 forced to -0.35..-0.30), ``action-fisheye`` (the equidistant
+fisheye) and ``camcorder-reencoded`` (the camcorder's set-up written without its
+interlace flags).  Each is rendered with its truth, tracked with the rig written beside it - plus
 ``[camera].rolling_shutter_ms`` = the sensor's readout time for a rolling-shutter
 camera, as its user would give it - and scored against the truth **at each row's own
 time** ``t`` (a cubic spline through the truth: with a rolling shutter a row's ``t`` is
@@ -42,8 +43,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-KINDS = ("ladder", "handheld", "camcorder", "camcorder-reencoded", "phone", "action",
-         "action-strong", "action-fisheye")
+KINDS = ("ladder", "handheld", "camcorder", "phone", "action", "action-strong",
+         "action-fisheye", "camcorder-reencoded")
 SEED = 20261124
 #: Set-ups drawn per kind until one renders (a phone set-up with variable frame timing
 #: failed the writer's last-frame check: the next draw of the kind is used then).
@@ -54,7 +55,9 @@ def draw(kind: str, seed: int, scale: float, attempt: int = 0):
     """The set-up of ``kind`` (the same for one seed and attempt)."""
     from curltrack.render.sweep import _lens_ok, draw_setup
 
-    key = [seed, KINDS.index(kind)] + ([attempt] if attempt else [])
+    # (camcorder-reencoded: the camcorder's own set-up, only its file's flags lost)
+    same = "camcorder" if kind == "camcorder-reencoded" else kind
+    key = [seed, KINDS.index(same)] + ([attempt] if attempt else [])
     rng = np.random.default_rng(np.random.SeedSequence(key))
     base = kind.split("-")[0]
     setup = draw_setup(rng, base, scale)
