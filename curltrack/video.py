@@ -20,10 +20,11 @@ or OpenCV's first frame is black where PyAV's is not.  :func:`probe_video` says 
 (``VideoInfo.decoder``), with the container format, the codec, the field order and the
 rotation tag.  A stream flagged progressive at a camcorder's frame rate is also checked
 for interlaced content (:func:`field_motion`: fields woven from two exposures, flags
-lost in a re-encoding), and measured as fields when its fields move apart.  With ``fields=True`` an interlaced frame is yielded as its two fields,
-each its own exposure (``Frame.field`` 0 = the field exposed first, ``Frame.t`` that
-field's time: the frame's plus half a frame period for the second), each resampled to
-the frame's full height with its lines where they were on the sensor.
+lost in a re-encoding), and measured as fields when its fields move apart.  With
+``fields=True`` an interlaced frame is yielded as its two fields, each its own exposure
+(``Frame.field`` 0 = the field exposed first, ``Frame.t`` that field's time: the
+frame's plus half a frame period for the second), each resampled to the frame's full
+height with its lines where they were on the sensor.
 
 Frames are decoded one at a time; no function here holds more than one frame.
 """
@@ -301,9 +302,9 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
     correlation of a central crop; where the lattice aliases that step, as two steps
     through the bottom field, whose fixed offsets cancel; a vertical intercept takes the
     offset of the top-to-bottom shift): slope +0.5 top field first, -0.5 bottom first,
-    0 progressive.  A still camera gives no leverage, and no
-    evidence.  Frame pairs whose correlation peak is under :data:`FIELD_MIN_RESPONSE`
-    (nothing to see) are left out.
+    0 progressive.  A still camera gives no leverage, and no evidence.  Frame pairs
+    whose correlation peak is under :data:`FIELD_MIN_RESPONSE` (nothing to see) are
+    left out.
 
     Returns
     -------
