@@ -30,8 +30,9 @@ rock, for testing that discovery does not take them for physics:
 ``quantised``
     A file that rounds its values (a track written in centimetres): white noise of
     sigma / 2, then rounding to a quantum of sigma sqrt(12) (1 cm for sigma = 2.9 mm):
-    1.1 sigma in all (the rounding's sigma and the noise's sigma / 2).  The error then depends on the value: it holds while the
-    rock moves by less than a quantum, and sweeps a sawtooth while it moves on.
+    1.1 sigma in all (the rounding's sigma and the noise's sigma / 2).  The error then
+    depends on the value: it holds while the rock moves by less than a quantum, and
+    sweeps a sawtooth while it moves on.
 
 Sampling (:class:`Sampling`): any rate, Gaussian timestamp jitter, gaps (stretches with
 no rows, up to ``max_gap_s``), and a first row after release (``start_s``).  The
@@ -122,7 +123,8 @@ def draw_noise(kind: str, t, sigma: float, rng: np.random.Generator,
         return sigma * levels[idx] + rng.normal(0.0, sigma / 5.0, n)
     if kind == "vibration":
         f = rng.uniform(*VIBRATION_HZ)
-        wave = math.sqrt(2.0 * VIBRATION_SHARE) * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
+        phase = rng.uniform(0, 2 * np.pi)
+        wave = math.sqrt(2.0 * VIBRATION_SHARE) * np.sin(2 * np.pi * f * t + phase)
         return sigma * (wave + rng.normal(0.0, math.sqrt(1.0 - VIBRATION_SHARE), n))
     if kind == "quantised":
         if values is None or np.shape(values) != t.shape:

@@ -123,18 +123,17 @@ def check_units(series) -> list[str]:
                         "contract's x, y are in metres")
         warnings.append(f"x/y: a speed of {speed:.3g} m/s is beyond a curling rock's "
                         f"(<= {MAX_SPEED:g} m/s): check the units of x, y and t")
-    _check_direction(xy, fail)   # (after the units: x alone in mm turns the path too)
-    if has_theta.sum() >= 3:
-        _check_curl_side(xy, d["theta"].to_numpy(float), has_theta, warnings)
+    u, travel = _initial_direction(xy)
+    if travel >= 0.5:   # (a pure rotation, or too short to say)
+        _check_direction(xy, u, fail)   # (after the units: x alone in mm turns it too)
+        if has_theta.sum() >= 3:
+            _check_curl_side(xy, u, travel, d["theta"].to_numpy(float)[has_theta], warnings)
     return warnings
 
 
-def _check_direction(xy, fail) -> None:
-    """The shot frame: +y along the initial velocity.  A series in the rink's frame or
-    an image's (travel along x, or -y) is an error naming the direction."""
-    u, travel = _initial_direction(xy)
-    if travel < 0.5:    # (a pure rotation, or too short to say)
-        return
+def _check_direction(xy, u, fail) -> None:
+    """The shot frame: +y along the initial velocity (``u``).  A series in the rink's
+    frame or an image's (travel along x, or -y) is an error naming the direction."""
     angle = float(np.degrees(np.arctan2(u[0], u[1])))   # from +y, towards +x
     if abs(angle) > MAX_SKEW_DEG:
         fail("x/y", f"the rock starts along ({u[0]:+.2f}, {u[1]:+.2f}), {abs(angle):.0f} deg "
@@ -154,14 +153,11 @@ def _initial_direction(xy):
     return (step / norm if norm > 0 else np.array([0.0, 1.0])), travel
 
 
-def _check_curl_side(xy, theta, has_theta, warnings) -> None:
+def _check_curl_side(xy, u, travel, th, warnings) -> None:
     """Every curling rock curls the way it spins (clockwise to the right): a rock that
-    ends well off its initial line on the other side says the axes are mirrored."""
-    u, travel = _initial_direction(xy)
-    if travel < 0.5:
-        return
+    ends well off its initial line ``u`` on the other side says the axes are mirrored.
+    ``th``: the measured angles (rad)."""
     lateral = float((xy[-1] - xy[0]) @ np.array([u[1], -u[0]]))   # + right of travel
-    th = theta[has_theta]
     turn = float(th[-1] - th[0])
     if (abs(lateral) >= max(CURL_MIN_M, CURL_MIN_SHARE * travel)
             and abs(turn) >= CURL_MIN_TURN_RAD and lateral * turn > 0):

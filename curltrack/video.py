@@ -107,6 +107,14 @@ class VideoInfo:
     pixel_aspect: float = 1.0
     fields_from_content: str = ""
 
+    @property
+    def content_field_order(self) -> str | None:
+        """"tff"/"bff" when the interlacing was found in the content (the frames' flags
+        say progressive, so :func:`iter_frames` must be told the order), else None."""
+        if not self.fields_from_content:
+            return None
+        return "tff" if self.top_field_first else "bff"
+
     def describe(self) -> str:
         """One line: format, size, rate, scan and what will be done with it."""
         scan = (f"interlaced ({'top' if self.top_field_first else 'bottom'} field first)"
@@ -589,7 +597,8 @@ def _field_halves(fr, per_field_chroma: bool = True) -> dict:
     """
     import cv2
 
-    if per_field_chroma and fr.format.name in ("yuv420p", "yuvj420p") and fr.height % 4 == 0 and fr.width % 2 == 0:
+    if (per_field_chroma and fr.format.name in ("yuv420p", "yuvj420p")
+            and fr.height % 4 == 0 and fr.width % 2 == 0):
         a = fr.to_ndarray()  # I420: Y (h rows), then U and V (h/4 rows of w each)
         h, w = fr.height, fr.width
         Y = a[:h]

@@ -113,11 +113,9 @@ def _decode_cpu(video) -> float:
     from curltrack.video import iter_frames, probe_video
 
     info = probe_video(video)
-    order = (("tff" if info.top_field_first else "bff") if info.fields_from_content
-             else None)
     t0 = time.process_time()
     for _ in iter_frames(video, decoder=info.decoder, fields=info.interlaced,
-                         field_order=order):
+                         field_order=info.content_field_order):
         pass
     return time.process_time() - t0
 

@@ -356,11 +356,12 @@ def isolated_outliers(r, k: float = OUTLIER_K) -> np.ndarray:
     misfit (any effect of the physics) or an instrument's step that holds for a few
     samples does not look like them.  A row is an outlier when its residual differs from
     the running median of the ``2 OUTLIER_HALF_WINDOW + 1`` rows around it, and from the
-    mean of the two rows on either side, by more than ``k`` sigma of the noise: the rows' own (the residuals are in units of the noise
-    :func:`estimate_noise` measured), or more if the differences' robust spread says
-    so - not less, since on a steep trend the running median is the row itself and the
-    differences vanish.  Correlated noise is followed by the median, which makes the
-    test only more conservative.
+    mean of the two rows on either side, by more than ``k`` sigma of the noise: the
+    rows' own (the residuals are in units of the noise :func:`estimate_noise`
+    measured), or more if the differences' robust spread says so - not less, since on
+    a steep trend the running median is the row itself and the differences vanish.
+    Correlated noise is followed by the median, which makes the test only more
+    conservative.
 
     Parameters
     ----------

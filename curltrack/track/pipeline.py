@@ -644,11 +644,9 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     end = min(end, info.n_frames)
     exclude = sorted({int(i) for i in exclude_frames if start <= int(i) < end})
     fields = info.interlaced
-    order = (("tff" if info.top_field_first else "bff") if info.fields_from_content
-             else None)
     frames = iter_frames(video_path, start=start, end=end, exclude=exclude,
                          fps_override=rig.fps, decoder=info.decoder, fields=fields,
-                         field_order=order)
+                         field_order=info.content_field_order)
     total = end - start - len(exclude)
     import cv2
 

@@ -546,8 +546,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                 "the image's shear under a shaking or turning camera is not modelled - "
                 "positions may be off by a few per cent of it, not included in sigma_xy")
     if getattr(info, "fields_from_content", ""):
-        warnings.append(f"{path}: the stream is flagged progressive, but {info.fields_from_content}: "
-                        f"interlaced video whose flags were lost (a re-encoding): each "
+        warnings.append(f"{path}: the stream is flagged progressive, but "
+                        f"{info.fields_from_content}: interlaced video whose flags were lost (a re-encoding): each "
                         f"frame was measured as its two fields, "
                         f"{'top' if info.top_field_first else 'bottom'} first")
     if abs(getattr(info, "pixel_aspect", 1.0) - 1.0) > 1e-3:
