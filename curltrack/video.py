@@ -89,6 +89,10 @@ class VideoInfo:
     fields_from_content : str
         "" when the scan is the stream's flags; else why a stream flagged progressive is
         measured as interlaced (:func:`field_motion`).
+    colour_per_field : bool
+        Each field has its own colour rows (flagged interlaced streams; for interlacing
+        found in the content, what :attr:`FieldMotion.colour_per_field` shows): each
+        field is then measured from its own colour, else from colour the two share.
     """
 
     path: str
@@ -106,6 +110,7 @@ class VideoInfo:
     decoder: str = "opencv"
     pixel_aspect: float = 1.0
     fields_from_content: str = ""
+    colour_per_field: bool = True
 
     @property
     def content_field_order(self) -> str | None:
@@ -271,12 +276,19 @@ class FieldMotion:
         frame to the next: +0.5 woven top field first, -0.5 bottom first, 0 one exposure.
     slope_err : float
         Its standard error (inf when not measured).
+    chroma_slope, chroma_slope_err : float
+        The same for the 4:2:0 colour planes' even and odd rows (in their own pixels):
+        half :attr:`slope` when each field has its own colour rows (interlaced 4:2:0,
+        kept by a re-encoding that copied the planes), 0 when the colour was subsampled
+        across the woven frame (shared by the fields); error inf when not measured.
     """
 
     n_frames: int
     n_moving: int
     slope: float
     slope_err: float
+    chroma_slope: float = 0.0
+    chroma_slope_err: float = np.inf
 
     @property
     def woven(self) -> bool:
@@ -289,12 +301,30 @@ class FieldMotion:
         """"tff" or "bff" when :attr:`woven`, else None."""
         return ("tff" if self.slope > 0 else "bff") if self.woven else None
 
+    @property
+    def colour_per_field(self) -> bool:
+        """Each field has its own colour rows: the colour planes' rows move apart as the
+        luma's do (chroma slope nearer half :attr:`slope` than 0, at 5 standard errors).
+        False - colour shared by the fields, the safe reading - when that is not shown."""
+        half = 0.5 * self.slope
+        return bool(self.woven and np.isfinite(self.chroma_slope_err)
+                    and self.chroma_slope * np.sign(half) >= 0.5 * abs(half)
+                    and abs(self.chroma_slope) >= 5.0 * self.chroma_slope_err)
+
     def describe(self) -> str:
+        colour = ""
+        if self.woven:
+            colour = (f"; its colour rows move with their fields (chroma {self.chroma_slope:+.2f}"
+                      f" +- {self.chroma_slope_err:.2f}; per field: "
+                      f"{0.5 * self.slope:+.2f}): each field keeps its own colour"
+                      if self.colour_per_field else
+                      "; its colour is shared by the two fields (subsampled across the "
+                      "woven frame, or not shown otherwise)")
         return (f"its bottom field is shifted from its top field by {self.slope:+.2f} +- "
                 f"{self.slope_err:.2f} of the image's motion per frame over {self.n_moving} "
                 f"moving frames (one exposure's fields: 0; woven, "
                 f"{'top' if self.slope > 0 else 'bottom'} field first: "
-                f"{'+' if self.slope > 0 else '-'}0.5)")
+                f"{'+' if self.slope > 0 else '-'}0.5){colour}")
 
 
 def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None:
@@ -330,7 +360,7 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
     try:
         with av.open(str(path)) as c:
             st = c.streams.video[0]
-            prev = win = None
+            prev = win = win_c = None
             for i, fr in enumerate(c.decode(st)):
                 if i > n_frames:
                     break
@@ -342,8 +372,11 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
                 r0, c0 = (h // 2 - ch) // 2, (w - cw) // 2
                 top = g[0::2][r0:r0 + ch, c0:c0 + cw]
                 bottom = g[1::2][r0:r0 + ch, c0:c0 + cw]
+                colour = _colour_rows(fr, r0, c0, ch, cw)
                 if win is None:
                     win = cv2.createHanningWindow((cw, ch), cv2.CV_32F)
+                    if colour is not None:
+                        win_c = cv2.createHanningWindow(colour[0].shape[::-1], cv2.CV_32F)
                 if prev is not None:
                     # the frame's motion top -> next top; where the lattice aliases that
                     # (a weak peak), as two shorter steps through the bottom field
@@ -352,23 +385,54 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
                     if r < FIELD_MIN_RESPONSE:
                         d2, r = cv2.phaseCorrelate(prev[1], top, win)
                         d = (d1[0] + d2[0], d1[1] + d2[1])
+                    dc, rc = ((np.nan, np.nan), 0.0) if prev[2] is None else \
+                        cv2.phaseCorrelate(*prev[2], win_c)
+                    if rc < FIELD_MIN_RESPONSE:
+                        dc = (np.nan, np.nan)
                     if min(r1, r) >= FIELD_MIN_RESPONSE:
-                        rows.append((*d1, *d))
-                prev = (top, bottom)
+                        rows.append((*d1, *d, *dc))
+                prev = (top, bottom, colour)
     except Exception:  # noqa: BLE001 - any FFmpeg failure: the caller's checks report it
         return None
-    p = np.array(rows).reshape(-1, 4)
+    p = np.array(rows).reshape(-1, 6)
     step = np.hypot(p[:, 2], p[:, 3])
     use = (step >= FIELD_MOTION_PX) & (step <= FIELD_MAX_SHIFT_PX)
     n_moving = int(use.sum())
     if n_moving < FIELD_MIN_MOVING:
         return FieldMotion(len(p), n_moving, 0.0, np.inf)
     q = p[use]
-    # d1x = s Dx ; d1y = c + s Dy: least squares, then again without 4-MAD outliers
-    y = np.concatenate([q[:, 0], q[:, 1]])
-    X = np.zeros((2 * n_moving, 2))
-    X[:, 0] = np.concatenate([q[:, 2], q[:, 3]])
-    X[n_moving:, 1] = 1.0
+    slope, err = _shift_slope(q[:, 2:4], q[:, 0:2])
+    qc = q[np.isfinite(q[:, 4:6]).all(axis=1)]
+    chroma = (_shift_slope(qc[:, 2:4], qc[:, 4:6]) if len(qc) >= FIELD_MIN_MOVING
+              else (0.0, np.inf))
+    return FieldMotion(len(p), n_moving, slope, err, *chroma)
+
+
+def _colour_rows(fr, r0: int, c0: int, ch: int, cw: int):
+    """(even, odd) rows of a 4:2:0 frame's colour strength |U - 128| + |V - 128| over the
+    luma fields' crop (rows ``r0:r0 + ch`` of a field, columns ``c0:c0 + cw``), float32;
+    None for other pixel formats (whose colour rows are the frame's own lines)."""
+    h, w = fr.height, fr.width
+    if fr.format.name not in ("yuv420p", "yuvj420p") or h % 4 or w % 2:
+        return None
+    a = fr.to_ndarray()  # I420: Y (h rows), then U and V (h/4 rows of w each)
+    U = a[h:h + h // 4].reshape(h // 2, w // 2).astype(np.float32)
+    V = a[h + h // 4:].reshape(h // 2, w // 2).astype(np.float32)
+    c = np.abs(U - 128.0) + np.abs(V - 128.0)
+    rows, cols = slice(r0 // 2, (r0 + ch) // 2), slice(c0 // 2, (c0 + cw) // 2)
+    even, odd = c[0::2][rows, cols], c[1::2][rows, cols]
+    return (even, odd) if min(even.shape) >= 8 else None
+
+
+def _shift_slope(motion, shift) -> tuple[float, float]:
+    """(slope, its standard error) of ``shift`` (n, 2) on ``motion`` (n, 2) - the same
+    slope on both axes, a free intercept on the vertical one - by least squares, then
+    again without 4-MAD outliers."""
+    n = len(motion)
+    y = np.concatenate([shift[:, 0], shift[:, 1]])
+    X = np.zeros((2 * n, 2))
+    X[:, 0] = np.concatenate([motion[:, 0], motion[:, 1]])
+    X[n:, 1] = 1.0
     keep = np.ones(y.size, bool)
     for _ in range(2):
         beta = np.linalg.lstsq(X[keep], y[keep], rcond=None)[0]
@@ -378,7 +442,7 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
     dof = max(int(keep.sum()) - 2, 1)
     s2 = float(np.sum(res[keep] ** 2)) / dof
     cov = s2 * np.linalg.pinv(X[keep].T @ X[keep])
-    return FieldMotion(len(p), n_moving, float(beta[0]), float(np.sqrt(max(cov[0, 0], 0.0))))
+    return float(beta[0]), float(np.sqrt(max(cov[0, 0], 0.0)))
 
 
 def _file_stamp(path) -> tuple[int, int]:
@@ -450,7 +514,8 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
             fm = _field_motion_of_file(str(path), *_file_stamp(path))
             if fm is not None and fm.woven:
                 av_info = {**av_info, "interlaced": True,
-                           "top_field_first": fm.order == "tff"}
+                           "top_field_first": fm.order == "tff",
+                           "colour_per_field": fm.colour_per_field}
                 from_content = fm.describe()
         decoder = ("pyav" if av_info and (av_info["interlaced"] or black or not square)
                    else "opencv")
@@ -469,7 +534,8 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
     finally:
         cap.release()
     extra = {k: av_info[k] for k in ("container", "codec_name", "interlaced",
-                                     "top_field_first", "rotation_deg", "pixel_aspect")
+                                     "top_field_first", "rotation_deg", "pixel_aspect",
+                                     "colour_per_field")
              if k in av_info}
     return VideoInfo(str(path), n, fps, w, h, codec, n / fps, decoder=decoder,
                      fields_from_content=from_content, **extra)
@@ -477,7 +543,8 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
 
 def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
                 fps_override: float | None = None, decoder: str | None = None,
-                fields: bool = False, field_order: str | None = None):
+                fields: bool = False, field_order: str | None = None,
+                colour_per_field: bool = True):
     """Yield :class:`Frame` objects one at a time, from ``start`` up to ``end`` (exclusive).
 
     Parameters
@@ -504,6 +571,9 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
         With ``fields``: split every frame in this exposure order, whatever its flags
         (a stream flagged progressive whose content is interlaced:
         ``VideoInfo.fields_from_content``).
+    colour_per_field : bool
+        With ``field_order``: each field has its own 4:2:0 colour rows
+        (``VideoInfo.colour_per_field``), else the frame's colour is shared by both.
 
     Raises
     ------
@@ -522,7 +592,8 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
     if decoder is None:
         decoder = probe_video(path, check_end=False).decoder
     if decoder == "pyav" or fields:
-        yield from _iter_pyav(path, start, end, exclude, fps_override, fields, field_order)
+        yield from _iter_pyav(path, start, end, exclude, fps_override, fields, field_order,
+                              colour_per_field)
         return
     cap = _open(path)
     try:
@@ -631,7 +702,8 @@ def _square_pixels(pixel_aspect: float):
     return square
 
 
-def _iter_pyav(path, start, end, exclude, fps_override, fields, field_order=None):
+def _iter_pyav(path, start, end, exclude, fps_override, fields, field_order=None,
+               colour_per_field=True):
     """:func:`iter_frames` through FFmpeg (PyAV): frames (or fields) with pts times."""
     import av
 
@@ -680,7 +752,8 @@ def _iter_pyav(path, start, end, exclude, fps_override, fields, field_order=None
                        else t - t0)
                 if fields and (fr.interlaced_frame or field_order is not None):
                     period = 1.0 / fps
-                    halves = _field_halves(fr, per_field_chroma=fr.interlaced_frame)
+                    halves = _field_halves(fr, per_field_chroma=(
+                        fr.interlaced_frame if field_order is None else colour_per_field))
                     for k, parity in enumerate(first):
                         yield Frame(index, rel + 0.5 * k * period,
                                     square(field_image(halves[parity], parity)), k)

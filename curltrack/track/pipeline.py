@@ -646,7 +646,8 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     fields = info.interlaced
     frames = iter_frames(video_path, start=start, end=end, exclude=exclude,
                          fps_override=rig.fps, decoder=info.decoder, fields=fields,
-                         field_order=info.content_field_order)
+                         field_order=info.content_field_order,
+                         colour_per_field=info.colour_per_field)
     total = end - start - len(exclude)
     import cv2
 

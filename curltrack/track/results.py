@@ -173,6 +173,33 @@ def field_offset_along(t, q, field, ok, window_s: float = FIELD_PULL_WINDOW_S) -
     return out
 
 
+def colour_mixing_sigma(t, shot, ok, dt_fields: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per-row 1 sigma (per coordinate, m; and rad) of a field measured from colour that
+    both of its frame's exposures share.
+
+    The markers' colour is then the two exposures' blend, which places the rock
+    anywhere on its path between them, and fields measured from it were found as far as
+    half that travel off, both alike (woven renders, 2026-11-26: 0.28-0.5 of the
+    travel, along it; the fields' own disagreement, which :func:`field_offset_along`
+    takes off, does not show it).  So half the travel ``speed x dt_fields`` (the field
+    period, s) is taken as the error's scale - along the motion, so / sqrt(2) per
+    coordinate - and half the turn ``|omega| x dt_fields`` for the angle.  Speeds are
+    the measured rows' (``shot``'s x, y, theta against ``t``), interpolated to the rest.
+    """
+    use = ok & np.isfinite(shot["x"]) & np.isfinite(shot["y"])
+    n = len(t)
+    if use.sum() < 3:
+        return np.zeros(n), np.zeros(n)
+    tu = t[use]
+    speed = np.hypot(np.gradient(shot["x"][use], tu), np.gradient(shot["y"][use], tu))
+    th = shot["theta"][use]
+    fin = np.isfinite(th)
+    omega = (np.abs(np.gradient(th[fin], tu[fin])) if fin.sum() >= 3 else np.zeros(0))
+    speed = np.interp(t, tu, speed)
+    omega = np.interp(t, tu[fin], omega) if omega.size else np.zeros(n)
+    return 0.5 * speed * dt_fields / np.sqrt(2.0), 0.5 * omega * dt_fields
+
+
 def misfit_gain(misfit, sigma) -> tuple[np.ndarray, np.ndarray]:
     """How much of the lattice's local misfit at the rock to take off, per frame and
     axis, and the 1 sigma (per coordinate) of what is left.
@@ -419,7 +446,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     p0 = undistort(np.nanmean(r0.markers_px, axis=0)[None], calib.K, calib.dist)
     a, b = apply_h(r0.H, np.vstack([p0, p0 + (0.0, -10.0)]))
     fld = np.array([r.field if r.field is not None else -1 for r in records])
-    shared_colour = bool(getattr(info, "fields_from_content", "")) and bool((fld >= 0).any())
+    shared_colour = (bool(getattr(info, "fields_from_content", ""))
+                     and not getattr(info, "colour_per_field", True) and bool((fld >= 0).any()))
     if shared_colour:
         # a stream coded progressive shares its 4:2:0 colour between the two fields: the
         # colours each field is measured by are the two exposures' mean, and pull both
@@ -487,6 +515,15 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                 "the shot")
             off = np.zeros(3)
         off_xy, off_theta = 0.5 * np.hypot(off[0], off[1]) / np.sqrt(2), 0.5 * abs(off[2])
+        if shared_colour:
+            mix_xy, mix_theta = colour_mixing_sigma(t, shot, ok, 0.5 / info.fps)
+            off_xy, off_theta = np.hypot(off_xy, mix_xy), np.hypot(off_theta, mix_theta)
+            warnings.append(
+                f"{path}: each field's colour mixes both exposures (colour subsampled across "
+                "the woven frame): the markers locate the rock only within its travel "
+                f"between the fields (up to {1e3 * np.nanmax(mix_xy) * 2 * np.sqrt(2):.0f} mm, "
+                "included in sigma_xy / sigma_theta): the camera's original file measures "
+                "better")
         sigma_xy = np.hypot(sigma_xy, off_xy)
         sigma_theta = np.hypot(sigma_theta, off_theta)
         if np.hypot(off[0], off[1]) > 2e-3 or abs(off[2]) > np.radians(0.5):

@@ -238,7 +238,17 @@ def test_signal_removes_temporary_files(tmp_path, rig_file, good_clip, sig):
     assert rc != 0
     assert (d / "ov.mp4").read_text() == "old\n"
     left = [p.name for p in d.iterdir() if p.name.startswith(".")]
-    assert not left, f"temporary files left after {sig.name}: {left}"
+    if left and rc in (-signal.SIGSEGV, -signal.SIGABRT):
+        # FFmpeg crashing on the signal inside an encoder (about 1 run in 150-200,
+        # _atomic.signals_after): no clean-up can run in a crashed process; what is
+        # promised then is that the next run of that output removes what it left
+        from curltrack._atomic import clean_stale
+
+        clean_stale(d / "ov.mp4")
+        left = [p.name for p in d.iterdir() if p.name.startswith(".")]
+        assert not left, f"temporary files left after a crash on {sig.name}: {left}"
+        return
+    assert not left, f"temporary files left after {sig.name} (exit {rc}): {left}"
 
 
 def test_stale_temporary_files_are_cleaned_by_the_next_run(cli, tmp_path, shot_csv):

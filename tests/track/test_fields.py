@@ -20,11 +20,14 @@ from curltrack.simulate import simulate_series  # noqa: E402
 NTSC = 30000 / 1001
 
 
-def weave_interlaced(src, dst, top_first=True, crf=18, flagged=True):
+def weave_interlaced(src, dst, top_first=True, crf=18, flagged=True, shared_colour=False):
     """Weave pairs of progressive frames of ``src`` into interlaced H.264 frames.
 
     ``flagged=False`` writes the same woven frames as progressive H.264 with no field
-    order: interlaced footage re-encoded by a program that dropped the flags.
+    order: interlaced footage re-encoded by a program that dropped the flags (and copied
+    the colour planes, each field's own rows).  ``shared_colour=True`` subsamples the
+    colour across the woven frame instead, as a re-encoding that converted the pixel
+    format as if progressive does (each colour row then holds both fields).
 
     Each field line sums two adjacent rows of its exposure (rows 2i + p and 2i + p + 1
     for the field of parity p), as a CCD camcorder in field-integration mode reads its
@@ -47,17 +50,21 @@ def weave_interlaced(src, dst, top_first=True, crf=18, flagged=True):
         h, w = a.image.shape[:2]
         Y, U, V = (np.empty((h, w), np.uint8), np.empty((h // 2, w // 2), np.uint8),
                    np.empty((h // 2, w // 2), np.uint8))
+        woven = np.empty_like(a.image)
         first, second = (0, 1) if top_first else (1, 0)
         for x, p in ((a.image, first), (b.image, second)):
             rows = x.astype(np.uint16)
             nxt = np.vstack([rows[1:], rows[-1:]])
             half = ((rows[p::2] + nxt[p::2] + 1) // 2).astype(np.uint8)
+            woven[p::2] = half
             # 4:2:0 per field, as interlaced video is subsampled
             yuv = cv2.cvtColor(half, cv2.COLOR_BGR2YUV_I420)
             Y[p::2] = yuv[:h // 2]
             U[p::2] = yuv[h // 2:h // 2 + h // 8].reshape(h // 4, w // 2)
             V[p::2] = yuv[h // 2 + h // 8:].reshape(h // 4, w // 2)
         img = np.vstack([Y, U.reshape(h // 4, w), V.reshape(h // 4, w)])
+        if shared_colour:
+            img = cv2.cvtColor(woven, cv2.COLOR_BGR2YUV_I420)
         if st is None:
             from fractions import Fraction
 
@@ -172,11 +179,14 @@ def test_dv_pixels_10_11_tracked_in_square_pixels(tmp_path):
 def test_interlaced_footage_whose_flags_were_lost_is_measured_per_field(tmp_path):
     """The same woven fields written as progressive H.264 (a re-encoding that dropped
     the interlace flags): found from the content, measured per field in the order the
-    content shows, warned about, and honest.  (Accuracy: the file's 4:2:0 colour is
-    shared by the two fields, so each field's colours hold the other exposure's too;
-    each field is moved by half the fields' disagreement as it changes over the shot -
-    six draws: ladder 0.8-0.9 mm, hand-held 2.8-3.1 mm RMS, max <= 9.7 mm (3.6-5.5 mm
-    without that) where the flagged file gives ~1 mm.)"""
+    content shows, warned about, and honest.  Its colour is drawn as a re-encoding
+    leaves it: each field's own 4:2:0 rows (planes copied) or subsampled across the
+    woven frame (a pixel-format conversion); which it is must be read from the content.
+
+    Measured (2026-11-26, 6 draws each): own colour 0.9-1.6 mm RMS, max <= 3.4 mm, as
+    the flagged file; shared colour 7-13 mm (the markers' colour blends both exposures:
+    both fields lag or lead by up to half the travel between them), with sigma_xy saying
+    so, and 77-100 % of the fields measured."""
     from curltrack.track import track_video
     from curltrack.video import probe_video
 
@@ -184,22 +194,26 @@ def test_interlaced_footage_whose_flags_were_lost_is_measured_per_field(tmp_path
     rng = np.random.default_rng(seed)
     rig = default_rig()
     top_first = bool(rng.random() < 0.5)
+    shared = bool(rng.random() < 0.5)
     truth, video, motion = woven_draw(tmp_path, rng, "reencoded.mp4", top_first=top_first,
-                                      flagged=False)
+                                      flagged=False, shared_colour=shared)
     info = probe_video(video)
-    what = f"seed {seed}, {motion}, top first {top_first}: {info.describe()}"
+    what = f"seed {seed}, {motion}, top first {top_first}, shared colour {shared}: " \
+        f"{info.describe()}"
     assert info.interlaced and info.fields_from_content, what
     assert info.top_field_first == top_first, what
+    assert info.colour_per_field is not shared, what
     series = track_video(video, rig)
     d = series.data
     assert series.meta.get("fields") is True and len(d) == 2 * info.n_frames, what
     assert any("flagged progressive" in w for w in series.warnings), what
+    assert any("colour mixes both exposures" in w for w in series.warnings) is shared, what
     tr = truth.data.iloc[2 * d.frame.to_numpy() + d.field.to_numpy()]
     ok = d.ok.to_numpy() == 1
     err = np.hypot(d.x.to_numpy() - tr.x.to_numpy(), d.y.to_numpy() - tr.y.to_numpy())[ok]
-    assert ok.mean() >= 0.95, f"{what}: ok {ok.mean():.2f}"
+    assert ok.mean() >= (0.6 if shared else 0.95), f"{what}: ok {ok.mean():.2f}"
     z = err / d.sigma_xy.to_numpy()[ok]
-    assert err.max() < 0.02 and z.max() < 5, \
+    assert err.max() < (0.04 if shared else 0.01) and z.max() < 5, \
         f"{what}: max {1e3 * err.max():.1f} mm, max error/sigma {z.max():.2f}"
     zr = np.sqrt(np.mean(z ** 2)) / np.sqrt(2)   # per coordinate
     assert 0.4 < zr < 1.6, f"{what}: error/sigma RMS {zr:.2f}"
