@@ -90,8 +90,9 @@ class VideoInfo:
         "" when the scan is the stream's flags; else why a stream flagged progressive is
         measured as interlaced (:func:`field_motion`).
     colour_per_field : bool
-        Each field has its own colour rows (flagged interlaced streams; for interlacing
-        found in the content, what :attr:`FieldMotion.colour_per_field` shows): each
+        Each field has its own colour rows: a flagged interlaced stream unless its
+        content shows otherwise (:attr:`FieldMotion.colour_shared`); for interlacing
+        found in the content, what :attr:`FieldMotion.colour_per_field` shows.  Each
         field is then measured from its own colour, else from colour the two share.
     """
 
@@ -126,6 +127,9 @@ class VideoInfo:
                 if self.interlaced else "progressive")
         if self.fields_from_content:
             scan += f" (flagged progressive: {self.fields_from_content})"
+        elif self.interlaced and not self.colour_per_field:
+            scan += (" (its colour rows do not move with their fields: colour subsampled "
+                     "across the woven frame, shared by the two fields)")
         rot = f", rotation tag {self.rotation_deg} deg" if self.rotation_deg else ""
         if abs(self.pixel_aspect - 1.0) > 1e-3:
             rot += (f", non-square pixels ({self.pixel_aspect:.4g}: resampled to square "
@@ -310,6 +314,16 @@ class FieldMotion:
         return bool(self.woven and np.isfinite(self.chroma_slope_err)
                     and self.chroma_slope * np.sign(half) >= 0.5 * abs(half)
                     and abs(self.chroma_slope) >= 5.0 * self.chroma_slope_err)
+
+    @property
+    def colour_shared(self) -> bool:
+        """The colour planes' rows are shown not to move with their fields (chroma slope
+        nearer 0 than half :attr:`slope`, at 5 standard errors): colour subsampled across
+        the woven frame, whatever the stream's flags say."""
+        half = abs(0.5 * self.slope)
+        return bool(self.woven and np.isfinite(self.chroma_slope_err)
+                    and 0.5 * half - self.chroma_slope * np.sign(self.slope)
+                    >= 5.0 * self.chroma_slope_err)
 
     def describe(self) -> str:
         colour = ""
@@ -510,13 +524,16 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
         black = int(img.max()) < 8 and av_info.get("peak", 0) >= 8
         square = abs(av_info.get("pixel_aspect", 1.0) - 1.0) <= 1e-3
         from_content = ""
-        if av_info and not av_info["interlaced"] and fps <= 31.0:
+        if av_info and fps <= 31.0:
             fm = _field_motion_of_file(str(path), *_file_stamp(path))
-            if fm is not None and fm.woven:
+            if fm is not None and fm.woven and not av_info["interlaced"]:
                 av_info = {**av_info, "interlaced": True,
                            "top_field_first": fm.order == "tff",
                            "colour_per_field": fm.colour_per_field}
                 from_content = fm.describe()
+            elif fm is not None and av_info["interlaced"] and fm.colour_shared:
+                # flagged interlaced, but its colour was subsampled as if progressive
+                av_info = {**av_info, "colour_per_field": False}
         decoder = ("pyav" if av_info and (av_info["interlaced"] or black or not square)
                    else "opencv")
         if check_end and n > 1:
@@ -572,7 +589,7 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
         (a stream flagged progressive whose content is interlaced:
         ``VideoInfo.fields_from_content``).
     colour_per_field : bool
-        With ``field_order``: each field has its own 4:2:0 colour rows
+        With ``fields``: each field has its own 4:2:0 colour rows
         (``VideoInfo.colour_per_field``), else the frame's colour is shared by both.
 
     Raises
@@ -752,8 +769,7 @@ def _iter_pyav(path, start, end, exclude, fps_override, fields, field_order=None
                        else t - t0)
                 if fields and (fr.interlaced_frame or field_order is not None):
                     period = 1.0 / fps
-                    halves = _field_halves(fr, per_field_chroma=(
-                        fr.interlaced_frame if field_order is None else colour_per_field))
+                    halves = _field_halves(fr, per_field_chroma=colour_per_field)
                     for k, parity in enumerate(first):
                         yield Frame(index, rel + 0.5 * k * period,
                                     square(field_image(halves[parity], parity)), k)

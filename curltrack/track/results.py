@@ -446,8 +446,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     p0 = undistort(np.nanmean(r0.markers_px, axis=0)[None], calib.K, calib.dist)
     a, b = apply_h(r0.H, np.vstack([p0, p0 + (0.0, -10.0)]))
     fld = np.array([r.field if r.field is not None else -1 for r in records])
-    shared_colour = (bool(getattr(info, "fields_from_content", ""))
-                     and not getattr(info, "colour_per_field", True) and bool((fld >= 0).any()))
+    shared_colour = not getattr(info, "colour_per_field", True) and bool((fld >= 0).any())
     if shared_colour:
         # a stream coded progressive shares its 4:2:0 colour between the two fields: the
         # colours each field is measured by are the two exposures' mean, and pull both
