@@ -90,10 +90,10 @@ class VideoInfo:
         "" when the scan is the stream's flags; else why a stream flagged progressive is
         measured as interlaced (:func:`field_motion`).
     colour_per_field : bool
-        Each field has its own colour rows: a flagged interlaced stream unless its
-        content shows otherwise (:attr:`FieldMotion.colour_shared`); for interlacing
-        found in the content, what :attr:`FieldMotion.colour_per_field` shows.  Each
-        field is then measured from its own colour, else from colour the two share.
+        Each field has its own colour rows: a flagged interlaced stream (as cameras
+        write it); for interlacing found in the content, what
+        :attr:`FieldMotion.colour_per_field` shows.  Each field is then measured from
+        its own colour, else from colour the two share.
     """
 
     path: str
@@ -127,9 +127,6 @@ class VideoInfo:
                 if self.interlaced else "progressive")
         if self.fields_from_content:
             scan += f" (flagged progressive: {self.fields_from_content})"
-        elif self.interlaced and not self.colour_per_field:
-            scan += (" (its colour rows do not move with their fields: colour subsampled "
-                     "across the woven frame, shared by the two fields)")
         rot = f", rotation tag {self.rotation_deg} deg" if self.rotation_deg else ""
         if abs(self.pixel_aspect - 1.0) > 1e-3:
             rot += (f", non-square pixels ({self.pixel_aspect:.4g}: resampled to square "
@@ -281,10 +278,13 @@ class FieldMotion:
     slope_err : float
         Its standard error (inf when not measured).
     chroma_slope, chroma_slope_err : float
-        The same for the 4:2:0 colour planes' even and odd rows (in their own pixels):
-        half :attr:`slope` when each field has its own colour rows (interlaced 4:2:0,
-        kept by a re-encoding that copied the planes), 0 when the colour was subsampled
-        across the woven frame (shared by the fields); error inf when not measured.
+        The same for the 4:2:0 colour planes: the shift from their even rows to their
+        odd rows per shift of the colour from one frame to the next - :attr:`slope`
+        when each field has its own colour rows (interlaced 4:2:0, kept by a
+        re-encoding that copied the planes), 0 when the colour was subsampled across
+        the woven frame (shared by the fields); error inf when not measured.  (The
+        colour's own motion, not the image's: thin threads lose their colour to the
+        subsampling, and what is left to see - the rock's markers - moves otherwise.)
     """
 
     n_frames: int
@@ -308,29 +308,17 @@ class FieldMotion:
     @property
     def colour_per_field(self) -> bool:
         """Each field has its own colour rows: the colour planes' rows move apart as the
-        luma's do (chroma slope nearer half :attr:`slope` than 0, at 5 standard errors).
+        luma's do (chroma slope nearer :attr:`slope` than 0, at 5 standard errors).
         False - colour shared by the fields, the safe reading - when that is not shown."""
-        half = 0.5 * self.slope
+        c = self.chroma_slope * np.sign(self.slope)
         return bool(self.woven and np.isfinite(self.chroma_slope_err)
-                    and self.chroma_slope * np.sign(half) >= 0.5 * abs(half)
-                    and abs(self.chroma_slope) >= 5.0 * self.chroma_slope_err)
-
-    @property
-    def colour_shared(self) -> bool:
-        """The colour planes' rows are shown not to move with their fields (chroma slope
-        nearer 0 than half :attr:`slope`, at 5 standard errors): colour subsampled across
-        the woven frame, whatever the stream's flags say."""
-        half = abs(0.5 * self.slope)
-        return bool(self.woven and np.isfinite(self.chroma_slope_err)
-                    and 0.5 * half - self.chroma_slope * np.sign(self.slope)
-                    >= 5.0 * self.chroma_slope_err)
+                    and c >= 0.5 * abs(self.slope) and c >= 5.0 * self.chroma_slope_err)
 
     def describe(self) -> str:
         colour = ""
         if self.woven:
             colour = (f"; its colour rows move with their fields (chroma {self.chroma_slope:+.2f}"
-                      f" +- {self.chroma_slope_err:.2f}; per field: "
-                      f"{0.5 * self.slope:+.2f}): each field keeps its own colour"
+                      f" +- {self.chroma_slope_err:.2f}): each field keeps its own colour"
                       if self.colour_per_field else
                       "; its colour is shared by the two fields (subsampled across the "
                       "woven frame, or not shown otherwise)")
@@ -399,16 +387,19 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
                     if r < FIELD_MIN_RESPONSE:
                         d2, r = cv2.phaseCorrelate(prev[1], top, win)
                         d = (d1[0] + d2[0], d1[1] + d2[1])
-                    dc, rc = ((np.nan, np.nan), 0.0) if prev[2] is None else \
-                        cv2.phaseCorrelate(*prev[2], win_c)
-                    if rc < FIELD_MIN_RESPONSE:
-                        dc = (np.nan, np.nan)
+                    # the colour's field shift, and its own motion to the next frame
+                    dc = dcm = (np.nan, np.nan)
+                    if prev[2] is not None and colour is not None:
+                        dc, rc = cv2.phaseCorrelate(*prev[2], win_c)
+                        dcm, rcm = cv2.phaseCorrelate(prev[2][0], colour[0], win_c)
+                        if min(rc, rcm) < FIELD_MIN_RESPONSE:
+                            dc = dcm = (np.nan, np.nan)
                     if min(r1, r) >= FIELD_MIN_RESPONSE:
-                        rows.append((*d1, *d, *dc))
+                        rows.append((*d1, *d, *dc, *dcm))
                 prev = (top, bottom, colour)
     except Exception:  # noqa: BLE001 - any FFmpeg failure: the caller's checks report it
         return None
-    p = np.array(rows).reshape(-1, 6)
+    p = np.array(rows).reshape(-1, 8)
     step = np.hypot(p[:, 2], p[:, 3])
     use = (step >= FIELD_MOTION_PX) & (step <= FIELD_MAX_SHIFT_PX)
     n_moving = int(use.sum())
@@ -416,8 +407,11 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
         return FieldMotion(len(p), n_moving, 0.0, np.inf)
     q = p[use]
     slope, err = _shift_slope(q[:, 2:4], q[:, 0:2])
-    qc = q[np.isfinite(q[:, 4:6]).all(axis=1)]
-    chroma = (_shift_slope(qc[:, 2:4], qc[:, 4:6]) if len(qc) >= FIELD_MIN_MOVING
+    # (colour planes have half the pixels each way: half the luma's motion limits)
+    cstep = np.hypot(p[:, 6], p[:, 7])
+    qc = p[np.isfinite(cstep) & (cstep >= 0.5 * FIELD_MOTION_PX)
+           & (cstep <= 0.5 * FIELD_MAX_SHIFT_PX)]
+    chroma = (_shift_slope(qc[:, 6:8], qc[:, 4:6]) if len(qc) >= FIELD_MIN_MOVING
               else (0.0, np.inf))
     return FieldMotion(len(p), n_moving, slope, err, *chroma)
 
@@ -524,16 +518,13 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
         black = int(img.max()) < 8 and av_info.get("peak", 0) >= 8
         square = abs(av_info.get("pixel_aspect", 1.0) - 1.0) <= 1e-3
         from_content = ""
-        if av_info and fps <= 31.0:
+        if av_info and not av_info["interlaced"] and fps <= 31.0:
             fm = _field_motion_of_file(str(path), *_file_stamp(path))
-            if fm is not None and fm.woven and not av_info["interlaced"]:
+            if fm is not None and fm.woven:
                 av_info = {**av_info, "interlaced": True,
                            "top_field_first": fm.order == "tff",
                            "colour_per_field": fm.colour_per_field}
                 from_content = fm.describe()
-            elif fm is not None and av_info["interlaced"] and fm.colour_shared:
-                # flagged interlaced, but its colour was subsampled as if progressive
-                av_info = {**av_info, "colour_per_field": False}
         decoder = ("pyav" if av_info and (av_info["interlaced"] or black or not square)
                    else "opencv")
         if check_end and n > 1:
