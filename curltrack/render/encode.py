@@ -102,13 +102,10 @@ class _CvWriter:
 
 class _AvWriter:
     def __init__(self, path, fps, size, enc: EncodingConfig, field_order=None,
-                 pixel_aspect=1.0, field_colour=False):
+                 pixel_aspect=1.0):
         import av
 
         self.path = path
-        # (4:2:0 colour of woven fields: each field's own rows, as an interlaced camera
-        # subsamples it; FFmpeg's conversion would average rows of the two fields)
-        self.field_colour = bool(field_colour) and int(size[1]) % 4 == 0
         try:
             self.c = av.open(str(path), "w", format="mp4")
             s = self.c.add_stream(CODECS[enc.codec], rate=frame_rate(fps))
@@ -145,31 +142,12 @@ class _AvWriter:
         self.s, self.av = s, av
 
     def write(self, img, t):
-        if self.field_colour:
-            f = self.av.VideoFrame.from_ndarray(self._fields_i420(img), format="yuv420p")
-        else:
-            f = self.av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="bgr24")
+        f = self.av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="bgr24")
         f.pts = int(round(t * TIME_BASE))
         f.time_base = Fraction(1, TIME_BASE)
         with signals_after():  # (Ctrl-C between frames, never inside the encoder)
             for p in self.s.encode(f):
                 self.c.mux(p)
-
-    def _fields_i420(self, img) -> np.ndarray:
-        """A woven BGR frame as I420 whose colour rows alternate between the fields
-        (chroma row j belongs to field j % 2), each field converted on its own."""
-        h, w = img.shape[:2]
-        Y = np.empty((h, w), np.uint8)
-        U = np.empty((h // 2, w // 2), np.uint8)
-        V = np.empty((h // 2, w // 2), np.uint8)
-        for p in (0, 1):
-            a = self.av.VideoFrame.from_ndarray(np.ascontiguousarray(img[p::2]),
-                                                format="bgr24").reformat(format="yuv420p")
-            a = a.to_ndarray()
-            Y[p::2] = a[:h // 2]
-            U[p::2] = a[h // 2:h // 2 + h // 8].reshape(h // 4, w // 2)
-            V[p::2] = a[h // 2 + h // 8:].reshape(h // 4, w // 2)
-        return np.vstack([Y, U.reshape(h // 4, w), V.reshape(h // 4, w)])
 
     def close(self):
         with signals_after():
@@ -181,13 +159,10 @@ class _AvWriter:
 
 
 def open_writer(path, fps: float, size, enc: EncodingConfig | None = None,
-                field_order: str | None = None, pixel_aspect: float = 1.0,
-                field_colour: bool = False):
+                field_order: str | None = None, pixel_aspect: float = 1.0):
     """A writer with ``write(img_bgr, t_s)`` and ``close()`` (VideoError if it cannot be
-    opened).  ``field_order`` ("bff"/"tff") flags the stream interlaced;
-    ``field_colour``: frames are woven fields, whose 4:2:0 colour is subsampled per
-    field (flagged or not - a re-encoding that dropped the flags keeps the planes)."""
+    opened).  ``field_order`` ("bff"/"tff") flags the stream interlaced."""
     enc = enc or EncodingConfig()
     if enc.codec == "mp4v":
         return _CvWriter(path, fps, size)
-    return _AvWriter(path, fps, size, enc, field_order, pixel_aspect, field_colour)
+    return _AvWriter(path, fps, size, enc, field_order, pixel_aspect)

@@ -82,7 +82,7 @@ def render_video(series: Series, rig: Rig, video_path, truth_path=None,
                              prod.cfg.encoding,
                              sen.field_order if sen.interlaced and prod.cfg.encoding.interlace_flags
                              else None,
-                             prod.cam_cfg.pixel_aspect, field_colour=sen.interlaced)
+                             prod.cam_cfg.pixel_aspect)
         written = 0
         from ..progress import progress_bar
 
