@@ -104,13 +104,16 @@ def test_range_errors(clip):
         read_frame(path, n)
 
 
-def _woven_clip(path, rng, n=30, size=(320, 240), shift_px=None, order="tff"):
+def _woven_clip(path, rng, n=30, size=(320, 240), shift_px=None, order="tff", colour=None):
     """Frames of a textured scene panning by ``shift_px`` (x, y) per field: woven from two
     exposures (``order`` "tff"/"bff") or one (``order`` None), written as progressive
-    H.264 with no field flags."""
+    H.264 with no field flags.  Grey, or with ``colour`` a coloured scene whose 4:2:0
+    colour is subsampled per field ("field": each field's own colour rows) or across the
+    woven frame ("frame": rows shared by the fields)."""
     av = pytest.importorskip("av")
     w, h = size
-    big = cv2.GaussianBlur(rng.uniform(0, 255, (h + 200, w + 200)).astype(np.float32), (0, 0), 2)
+    shape = (h + 200, w + 200) + ((3,) if colour else ())
+    big = cv2.GaussianBlur(rng.uniform(0, 255, shape).astype(np.float32), (0, 0), 2)
     out = av.open(str(path), "w")
     st = out.add_stream("libx264", rate=30)
     st.width, st.height, st.pix_fmt = w, h, "yuv420p"
@@ -128,8 +131,24 @@ def _woven_clip(path, rng, n=30, size=(320, 240), shift_px=None, order="tff"):
             img = first.copy()
             top, bottom = (first, second) if order == "tff" else (second, first)
             img[0::2], img[1::2] = top[0::2], bottom[1::2]
-        bgr = cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_GRAY2BGR)
-        for p in st.encode(av.VideoFrame.from_ndarray(bgr, format="bgr24")):
+        img = np.clip(img, 0, 255).astype(np.uint8)
+        if colour is None:
+            frame = av.VideoFrame.from_ndarray(cv2.cvtColor(img, cv2.COLOR_GRAY2BGR),
+                                               format="bgr24")
+        elif colour == "frame":
+            frame = av.VideoFrame.from_ndarray(cv2.cvtColor(img, cv2.COLOR_BGR2YUV_I420),
+                                               format="yuv420p")
+        else:   # each field's own 4:2:0 rows: chroma row j belongs to field j % 2
+            Y, U, V = (np.empty((h, w), np.uint8), np.empty((h // 2, w // 2), np.uint8),
+                       np.empty((h // 2, w // 2), np.uint8))
+            for par in (0, 1):
+                yuv = cv2.cvtColor(np.ascontiguousarray(img[par::2]), cv2.COLOR_BGR2YUV_I420)
+                Y[par::2] = yuv[:h // 2]
+                U[par::2] = yuv[h // 2:h // 2 + h // 8].reshape(h // 4, w // 2)
+                V[par::2] = yuv[h // 2 + h // 8:].reshape(h // 4, w // 2)
+            frame = av.VideoFrame.from_ndarray(
+                np.vstack([Y, U.reshape(h // 4, w), V.reshape(h // 4, w)]), format="yuv420p")
+        for p in st.encode(frame):
             out.mux(p)
     for p in st.encode():
         out.mux(p)
@@ -166,3 +185,27 @@ def test_interlaced_content_in_a_progressive_stream_is_found(tmp_path):
     assert not probe_video(tmp_path / "one.mp4").interlaced, what
     _woven_clip(tmp_path / "still.mp4", rng, shift_px=(0.0, 0.0), order=order)
     assert not probe_video(tmp_path / "still.mp4").interlaced, what
+
+
+def test_colour_layout_of_woven_fields_is_read_from_the_content(tmp_path):
+    """Interlacing found in a progressive stream: whether each field kept its own 4:2:0
+    colour rows (a re-encoding that copied the planes) or shares rows subsampled across
+    the woven frame (one that converted the pixel format) is read from how the colour
+    planes' rows move; with no colour to see, shared - the reading whose sigma is wider."""
+    from curltrack.video import field_motion
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    speed, a = rng.uniform(1.2, 3.5), rng.uniform(0, 2 * np.pi)
+    shift = (speed * np.cos(a), speed * np.sin(a))
+    order = str(rng.choice(["tff", "bff"]))
+    colour = str(rng.choice(["field", "frame"]))
+    what = f"seed {seed}: {order}, {colour} colour, shift {shift[0]:.2f}, {shift[1]:.2f}"
+    _woven_clip(tmp_path / "woven.mp4", rng, shift_px=shift, order=order, colour=colour)
+    fm = field_motion(tmp_path / "woven.mp4")
+    assert fm.woven and fm.order == order, (what, fm)
+    assert fm.colour_per_field is (colour == "field"), (what, fm)
+    info = probe_video(tmp_path / "woven.mp4")
+    assert info.colour_per_field is (colour == "field"), (what, info)
+    _woven_clip(tmp_path / "grey.mp4", rng, shift_px=shift, order=order)
+    assert not probe_video(tmp_path / "grey.mp4").colour_per_field, what
