@@ -177,14 +177,18 @@ def colour_mixing_sigma(t, shot, ok, dt_fields: float) -> tuple[np.ndarray, np.n
     """Per-row 1 sigma (per coordinate, m; and rad) of a field measured from colour that
     both of its frame's exposures share.
 
-    The markers' colour is then the two exposures' blend, which places the rock
-    anywhere on its path between them, and fields measured from it were found as far as
-    half that travel off, both alike (woven renders, 2026-11-26: 0.28-0.5 of the
-    travel, along it; the fields' own disagreement, which :func:`field_offset_along`
-    takes off, does not show it).  So half the travel ``speed x dt_fields`` (the field
-    period, s) is taken as the error's scale - along the motion, so / sqrt(2) per
-    coordinate - and half the turn ``|omega| x dt_fields`` for the angle.  Speeds are
-    the measured rows' (``shot``'s x, y, theta against ``t``), interpolated to the rest.
+    How the colour was shared is not seen in the video.  FFmpeg's conversion makes each
+    colour row the mean of a line of each field: both fields' markers are pulled
+    towards each other alike, which :func:`field_offset_along` takes off (woven
+    renders, 2026-11-26: 0.5-1.1 mm from a ladder, 2.6-2.7 mm hand-held).  OpenCV's
+    samples the top field's line alone: the other field's colour is the top field's
+    exposure, and after the same correction both fields are off alike by 0.28-0.5 of
+    the rock's travel between them (6-13 mm), which their disagreement cannot show.  So
+    half the travel ``speed x dt_fields`` (the field period, s) is taken as the error's
+    scale - along the motion, so / sqrt(2) per coordinate - and half the turn
+    ``|omega| x dt_fields`` for the angle: honest for both, wide for FFmpeg's.  Speeds
+    are the measured rows' (``shot``'s x, y, theta against ``t``), interpolated to the
+    rest.
     """
     use = ok & np.isfinite(shot["x"]) & np.isfinite(shot["y"])
     n = len(t)
@@ -520,9 +524,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
             warnings.append(
                 f"{path}: each field's colour mixes both exposures (colour subsampled across "
                 "the woven frame): the markers locate the rock only within its travel "
-                f"between the fields (up to {1e3 * np.nanmax(mix_xy) * 2 * np.sqrt(2):.0f} mm, "
-                "included in sigma_xy / sigma_theta): the camera's original file measures "
-                "better")
+                f"between the fields (up to {1e3 * np.nanmax(mix_xy) * 2 * np.sqrt(2):.0f} mm; "
+                "half of it is included in sigma_xy / sigma_theta, which is wide where the "
+                "conversion averaged the fields' colour): the camera's original file "
+                "measures better")
         sigma_xy = np.hypot(sigma_xy, off_xy)
         sigma_theta = np.hypot(sigma_theta, off_theta)
         if np.hypot(off[0], off[1]) > 2e-3 or abs(off[2]) > np.radians(0.5):
