@@ -64,9 +64,21 @@ class FrameVerdict:
         return self.status == ""
 
 
+def _as_track_reads(path, fps_override=None) -> dict:
+    """:func:`curltrack.video.iter_frames` arguments that read ``path`` as ``track`` does:
+    an interlaced video (flagged, or found in its content) as its fields, each with the
+    colour it has (a woven frame of a moving rock or camera is no image to judge)."""
+    from ..video import probe_video
+
+    info = probe_video(path, fps_override=fps_override, check_end=False)
+    return dict(fps_override=fps_override, decoder=info.decoder, fields=info.interlaced,
+                field_order=info.content_field_order, colour_per_field=info.colour_per_field)
+
+
 def frame_reader(path, n_frames: int | None = None, fps_override=None):
     """``read(i)`` -> frame ``i`` of a video (BGR uint8; the last few decoded are kept),
-    None outside it; a still image is frame 0."""
+    None outside it; a still image is frame 0.  An interlaced video's frame is its
+    first field (resampled to the frame's height), as ``track`` measures it."""
     from pathlib import Path
 
     from ..video import IMAGE_SUFFIXES, iter_frames, probe_video, read_frame
@@ -76,15 +88,15 @@ def frame_reader(path, n_frames: int | None = None, fps_override=None):
         return lambda i: image if i == 0 else None
     if n_frames is None:
         n_frames = probe_video(path, fps_override=fps_override, check_end=False).n_frames
+    how = _as_track_reads(path, fps_override)
     cache: dict = {}
 
     def read(i):
         if not 0 <= i < n_frames:
             return None
         if i not in cache:
-            for fr in iter_frames(path, start=int(i), end=int(i) + 1,
-                                  fps_override=fps_override):
-                cache[i] = fr.image
+            for fr in iter_frames(path, start=int(i), end=int(i) + 1, **how):
+                cache.setdefault(i, fr.image)
             while len(cache) > 4:  # (bounded memory: doctor reads a few frames twice)
                 cache.pop(next(iter(cache)))
         return cache.get(i)
@@ -155,14 +167,15 @@ def check_frames(video, frames, rig: Rig, fps_override=None,
     else:
         # one run from the video's start: track's verdict on a frame rests on every
         # frame before it (the first calibration, the markers' prediction, the cell index)
-        runs = [iter_frames(video, start=0, end=max(wanted, default=-1) + 1,
-                            fps_override=fps_override)]
+        how = _as_track_reads(video, fps_override)
+        runs = [iter_frames(video, start=0, end=max(wanted, default=-1) + 1, **how)]
     out = {}
     for frames_run in runs:
         records, info = track_frames(frames_run, rig, path=video, progress=progress,
                                      outline_every=1 << 30, strict=False)
         for rec in records:
-            if rec.frame in wanted:
+            # (an interlaced frame: its first field's verdict)
+            if rec.frame in wanted and rec.frame not in out:
                 out[rec.frame] = _verdict(rec, info["calib"], info["calib_frame"])
     missing = [k for k in wanted if k not in out]
     if missing:
