@@ -104,6 +104,24 @@ def frame_reader(path, n_frames: int | None = None, fps_override=None):
     return read
 
 
+def _series_rules(records, rig: Rig, video, fps_override, loop_info) -> None:
+    """Give the records the reasons ``track`` finds only over the whole run (a marker
+    layout or a sigma far from the video's others, a cell index the path does not fix):
+    :func:`curltrack.track.results.build_series` sets them on the records it refuses.
+    Its "others" are the frames run, up to the last one judged, where track's are the
+    whole video's.  (Its errors about the video as a whole are doctor's other checks'
+    to report.)"""
+    from ..errors import CurltrackError
+    from ..video import probe_video
+    from .results import build_series
+
+    try:
+        build_series(records, rig, probe_video(video, fps_override=fps_override,
+                                               check_end=False), 0, loop_info, path=video)
+    except CurltrackError:
+        pass
+
+
 def _verdict(rec, calib, calib_frame) -> FrameVerdict:
     found = tuple(rec.markers_found)
     xy = rec.markers_px if found and all(found) else None
@@ -173,6 +191,8 @@ def check_frames(video, frames, rig: Rig, fps_override=None,
     for frames_run in runs:
         records, info = track_frames(frames_run, rig, path=video, progress=progress,
                                      outline_every=1 << 30, strict=False)
+        if Path(video).suffix.lower() not in IMAGE_SUFFIXES:
+            _series_rules(records, rig, video, fps_override, info)
         for rec in records:
             # (an interlaced frame: its first field's verdict)
             if rec.frame in wanted and rec.frame not in out:
