@@ -213,22 +213,27 @@ def test_interlaced_footage_whose_flags_were_lost_is_measured_per_field(tmp_path
             f"{info.describe()}")
     assert info.interlaced and info.fields_from_content, what
     assert info.top_field_first == top_first, what
-    assert info.colour_per_field is not shared, what
+    # shared colour is never read as the fields' own; own colour is (detected in every
+    # draw tried), though the safe reading - shared, sigma wide - is allowed where the
+    # content does not show it (test_video: steep pans)
+    assert not (shared and info.colour_per_field), what
+    read_shared = not info.colour_per_field
     series = track_video(video, rig)
     d = series.data
     assert series.meta.get("fields") is True and len(d) == 2 * info.n_frames, what
     assert any("flagged progressive" in w for w in series.warnings), what
-    assert any("colour mixes both exposures" in w for w in series.warnings) is shared, what
+    assert any("colour mixes both exposures" in w for w in series.warnings) is read_shared, \
+        what
     tr = truth.data.iloc[2 * d.frame.to_numpy() + d.field.to_numpy()]
     ok = d.ok.to_numpy() == 1
     err = np.hypot(d.x.to_numpy() - tr.x.to_numpy(), d.y.to_numpy() - tr.y.to_numpy())[ok]
-    assert ok.mean() >= (0.6 if shared else 0.95), f"{what}: ok {ok.mean():.2f}"
+    assert ok.mean() >= (0.6 if colour == "opencv" else 0.95), f"{what}: ok {ok.mean():.2f}"
     z = err / d.sigma_xy.to_numpy()[ok]
-    assert err.max() < (0.04 if shared else 0.01) and z.max() < 5, \
+    assert err.max() < (0.04 if colour == "opencv" else 0.01) and z.max() < 5, \
         f"{what}: max {1e3 * err.max():.1f} mm, max error/sigma {z.max():.2f}"
     zr = np.sqrt(np.mean(z ** 2)) / np.sqrt(2)   # per coordinate
-    # (FFmpeg's shared colour: 0.06-0.23 - sigma wide, as it must be for OpenCV's)
-    assert (0.02 if colour == "ffmpeg" else 0.4) < zr < 1.6, \
+    # (FFmpeg's shared colour: 0.06-0.36 - sigma wide, as it must be for OpenCV's)
+    assert (0.4 if colour == "opencv" or not read_shared else 0.02) < zr < 1.6, \
         f"{what}: error/sigma RMS {zr:.2f}"
 
 
