@@ -121,6 +121,15 @@ class VideoInfo:
             return None
         return "tff" if self.top_field_first else "bff"
 
+    @property
+    def reading(self) -> dict:
+        """:func:`iter_frames` keyword arguments that read the video as ``track``
+        measures it: with this decoder, an interlaced video (flagged, or found in its
+        content) as its fields, each with the colour it has."""
+        return dict(decoder=self.decoder, fields=self.interlaced,
+                    field_order=self.content_field_order,
+                    colour_per_field=self.colour_per_field)
+
     def describe(self) -> str:
         """One line: format, size, rate, scan and what will be done with it."""
         scan = (f"interlaced ({'top' if self.top_field_first else 'bottom'} field first)"

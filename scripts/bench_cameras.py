@@ -114,9 +114,7 @@ def _decode_cpu(video) -> float:
 
     info = probe_video(video)
     t0 = time.process_time()
-    for _ in iter_frames(video, decoder=info.decoder, fields=info.interlaced,
-                         field_order=info.content_field_order,
-                         colour_per_field=info.colour_per_field):
+    for _ in iter_frames(video, **info.reading):
         pass
     return time.process_time() - t0
 

@@ -64,17 +64,6 @@ class FrameVerdict:
         return self.status == ""
 
 
-def _as_track_reads(path, fps_override=None) -> dict:
-    """:func:`curltrack.video.iter_frames` arguments that read ``path`` as ``track`` does:
-    an interlaced video (flagged, or found in its content) as its fields, each with the
-    colour it has (a woven frame of a moving rock or camera is no image to judge)."""
-    from ..video import probe_video
-
-    info = probe_video(path, fps_override=fps_override, check_end=False)
-    return dict(fps_override=fps_override, decoder=info.decoder, fields=info.interlaced,
-                field_order=info.content_field_order, colour_per_field=info.colour_per_field)
-
-
 def frame_reader(path, n_frames: int | None = None, fps_override=None):
     """``read(i)`` -> frame ``i`` of a video (BGR uint8; the last few decoded are kept),
     None outside it; a still image is frame 0.  An interlaced video's frame is its
@@ -86,16 +75,18 @@ def frame_reader(path, n_frames: int | None = None, fps_override=None):
     if Path(path).suffix.lower() in IMAGE_SUFFIXES:
         image = read_frame(path, 0)
         return lambda i: image if i == 0 else None
+    # (read as track measures it: a woven frame of a moving rock is no image to judge)
+    info = probe_video(path, fps_override=fps_override, check_end=False)
     if n_frames is None:
-        n_frames = probe_video(path, fps_override=fps_override, check_end=False).n_frames
-    how = _as_track_reads(path, fps_override)
+        n_frames = info.n_frames
     cache: dict = {}
 
     def read(i):
         if not 0 <= i < n_frames:
             return None
         if i not in cache:
-            for fr in iter_frames(path, start=int(i), end=int(i) + 1, **how):
+            for fr in iter_frames(path, start=int(i), end=int(i) + 1,
+                                  fps_override=fps_override, **info.reading):
                 cache.setdefault(i, fr.image)
             while len(cache) > 4:  # (bounded memory: doctor reads a few frames twice)
                 cache.pop(next(iter(cache)))
@@ -104,7 +95,7 @@ def frame_reader(path, n_frames: int | None = None, fps_override=None):
     return read
 
 
-def _series_rules(records, rig: Rig, video, fps_override, loop_info) -> None:
+def _series_rules(records, rig: Rig, video, video_info, loop_info) -> None:
     """Give the records the reasons ``track`` finds only over the whole run (a marker
     layout or a sigma far from the video's others, a cell index the path does not fix):
     :func:`curltrack.track.results.build_series` sets them on the records it refuses.
@@ -112,12 +103,10 @@ def _series_rules(records, rig: Rig, video, fps_override, loop_info) -> None:
     whole video's.  (Its errors about the video as a whole are doctor's other checks'
     to report.)"""
     from ..errors import CurltrackError
-    from ..video import probe_video
     from .results import build_series
 
     try:
-        build_series(records, rig, probe_video(video, fps_override=fps_override,
-                                               check_end=False), 0, loop_info, path=video)
+        build_series(records, rig, video_info, 0, loop_info, path=video)
     except CurltrackError:
         pass
 
@@ -172,7 +161,7 @@ def check_frames(video, frames, rig: Rig, fps_override=None,
     """
     from pathlib import Path
 
-    from ..video import IMAGE_SUFFIXES, Frame, iter_frames, read_frame
+    from ..video import IMAGE_SUFFIXES, Frame, iter_frames, probe_video, read_frame
     from .pipeline import track_frames
 
     wanted = [int(k) for k in frames]
@@ -182,17 +171,19 @@ def check_frames(video, frames, rig: Rig, fps_override=None,
             raise TrackingError("frame outside the image (a still is frame 0)",
                                 path=video, where=f"frame {bad[0]}")
         runs = [iter([Frame(0, 0.0, read_frame(video, 0))])]
+        video_info = None
     else:
         # one run from the video's start: track's verdict on a frame rests on every
         # frame before it (the first calibration, the markers' prediction, the cell index)
-        how = _as_track_reads(video, fps_override)
-        runs = [iter_frames(video, start=0, end=max(wanted, default=-1) + 1, **how)]
+        video_info = probe_video(video, fps_override=fps_override, check_end=False)
+        runs = [iter_frames(video, start=0, end=max(wanted, default=-1) + 1,
+                            fps_override=fps_override, **video_info.reading)]
     out = {}
     for frames_run in runs:
         records, info = track_frames(frames_run, rig, path=video, progress=progress,
                                      outline_every=1 << 30, strict=False)
-        if Path(video).suffix.lower() not in IMAGE_SUFFIXES:
-            _series_rules(records, rig, video, fps_override, info)
+        if video_info is not None:
+            _series_rules(records, rig, video, video_info, info)
         for rec in records:
             # (an interlaced frame: its first field's verdict)
             if rec.frame in wanted and rec.frame not in out:

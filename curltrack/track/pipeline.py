@@ -645,9 +645,7 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     exclude = sorted({int(i) for i in exclude_frames if start <= int(i) < end})
     fields = info.interlaced
     frames = iter_frames(video_path, start=start, end=end, exclude=exclude,
-                         fps_override=rig.fps, decoder=info.decoder, fields=fields,
-                         field_order=info.content_field_order,
-                         colour_per_field=info.colour_per_field)
+                         fps_override=rig.fps, **info.reading)
     total = end - start - len(exclude)
     import cv2
 

@@ -505,7 +505,6 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     if any(r.field is not None for r in records):
         # the two fields disagree systematically (mis-registration, aliasing, chroma):
         # half their offset is an error of every row that the pixel noise does not show
-        off = field_offset(t, np.column_stack([shot["x"], shot["y"], shot["theta"]]), fld, ok)
         if shared_colour:   # (as the positions above; theta is cumulative only here)
             pull_th = field_offset_along(t, shot["theta"][:, None], fld, ok)[:, 0]
             shot["theta"] = shot["theta"] + half[:, 0] * pull_th
@@ -517,17 +516,19 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                 "share their colour do: each was moved by half of it, as it changed over "
                 "the shot")
             off = np.zeros(3)
-        off_xy, off_theta = 0.5 * np.hypot(off[0], off[1]) / np.sqrt(2), 0.5 * abs(off[2])
-        if shared_colour:
-            mix_xy, mix_theta = colour_mixing_sigma(t, shot, ok, 0.5 / info.fps)
-            off_xy, off_theta = np.hypot(off_xy, mix_xy), np.hypot(off_theta, mix_theta)
+            # (what is left is not in their disagreement: colour_mixing_sigma)
+            off_xy, off_theta = colour_mixing_sigma(t, shot, ok, 0.5 / info.fps)
             warnings.append(
                 f"{path}: each field's colour mixes both exposures (colour subsampled across "
                 "the woven frame): the markers locate the rock only within its travel "
-                f"between the fields (up to {1e3 * np.nanmax(mix_xy) * 2 * np.sqrt(2):.0f} mm; "
+                f"between the fields (up to {1e3 * np.nanmax(off_xy) * 2 * np.sqrt(2):.0f} mm; "
                 "half of it is included in sigma_xy / sigma_theta, which is wide where the "
                 "conversion averaged the fields' colour): the camera's original file "
                 "measures better")
+        else:
+            off = field_offset(t, np.column_stack([shot["x"], shot["y"], shot["theta"]]),
+                               fld, ok)
+            off_xy, off_theta = 0.5 * np.hypot(off[0], off[1]) / np.sqrt(2), 0.5 * abs(off[2])
         sigma_xy = np.hypot(sigma_xy, off_xy)
         sigma_theta = np.hypot(sigma_theta, off_theta)
         if np.hypot(off[0], off[1]) > 2e-3 or abs(off[2]) > np.radians(0.5):
