@@ -241,6 +241,7 @@ def _av_probe(path) -> dict:
                 order = int(getattr(cc, "field_order", 0) or 0)
                 sar = st.sample_aspect_ratio or cc.sample_aspect_ratio
                 return {"container": c.format.name, "codec_name": cc.name,
+                        "first_time": float(fr.time) if fr.time is not None else 0.0,
                         "pixel_aspect": float(sar) if sar else 1.0,
                         "interlaced": bool(fr.interlaced_frame),
                         "top_field_first": order not in (3, 5),
@@ -467,6 +468,56 @@ def _file_stamp(path) -> tuple[int, int]:
     return st.st_size, st.st_mtime_ns
 
 
+def _av_last_time(path, first: float, full: bool = False) -> float | None:
+    """The time (s) FFmpeg gives the video's last frame: decoded from a seek to a
+    keyframe within 2 s of the container's end (one GOP), or - ``full``, where that finds
+    no frame (a stream FFmpeg cannot seek in, such as MPEG-TS with one keyframe) - by
+    decoding every frame, streamed.  None without PyAV or when nothing decodes.
+    ``first`` is the first frame's time (s)."""
+    try:
+        import av
+    except ImportError:
+        return None
+    last = None
+    try:
+        with av.open(str(path)) as c:
+            st = c.streams.video[0]
+            if c.duration is not None:
+                end_s = (c.duration + (c.start_time or 0)) / 1e6
+                try:
+                    c.seek(int(max(first, end_s - 2.0) / st.time_base), stream=st,
+                           backward=True, any_frame=False)
+                    for fr in c.decode(st):
+                        if fr.time is not None:
+                            last = float(fr.time)
+                except av.FFmpegError:
+                    last = None
+        if last is None and full:
+            with av.open(str(path)) as c:
+                for fr in c.decode(c.streams.video[0]):
+                    if fr.time is not None:
+                        last = float(fr.time)
+    except Exception:  # noqa: BLE001 - any FFmpeg failure: the caller's checks report it
+        return None
+    return last
+
+
+@functools.lru_cache(maxsize=32)
+def _offset_frame_count(path: str, size: int, mtime_ns: int, first: float, fps: float,
+                        n: int) -> int | None:
+    """The frame count of a stream whose first frame is at ``first`` > 0 s, where
+    OpenCV's count ``n`` (the container's end time x fps) counts the offset as frames:
+    FFmpeg's last frame time - ``first``, x ``fps``, + 1 - when that, with the offset's
+    frames, makes up ``n``; else None (the count stands).  (A Matroska part cut from a
+    longer recording, its first frame at 10 s: OpenCV announced 444 frames for 144 and
+    the file was refused as truncated.)"""
+    last = _av_last_time(path, first)
+    if last is None:
+        return None
+    n_av = int(round((last - first) * fps)) + 1
+    return n_av if n_av < n and abs(n_av + first * fps - n) <= 1.5 else None
+
+
 @functools.lru_cache(maxsize=32)
 def _field_motion_of_file(path: str, size: int, mtime_ns: int) -> FieldMotion | None:
     """:func:`field_motion` once per file version (probe_video is called per stage)."""
@@ -536,6 +587,11 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
                 from_content = fm.describe()
         decoder = ("pyav" if av_info and (av_info["interlaced"] or black or not square)
                    else "opencv")
+        first = av_info.get("first_time", 0.0)
+        if first * fps >= 1.0:
+            n_offset = _offset_frame_count(str(path), *_file_stamp(path), first, fps, n)
+            if n_offset is not None:  # (OpenCV's reading would stop "truncated")
+                n, decoder, check_end = n_offset, "pyav", False
         if check_end and n > 1:
             cap.set(cv2.CAP_PROP_POS_FRAMES, n - 1)
             ok, img = cap.read()
@@ -545,9 +601,14 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
                 cap.set(cv2.CAP_PROP_POS_MSEC, max(0.0, (n - 3) * 1000.0 / fps))
                 ok, img = cap.read()
             if not ok or img is None:
-                raise VideoError(f"video is truncated: the container announces {n} frames "
-                                 "but the last one cannot be decoded", path=path,
-                                 where=f"frame {n - 1}")
+                # OpenCV cannot seek in every container (MPEG-TS: AVCHD camcorders,
+                # broadcast recorders): FFmpeg's last frame says whether the frames are
+                # there
+                last = _av_last_time(path, first, full=True)
+                if last is None or abs((last - first) * fps + 1 - n) > 1.5:
+                    raise VideoError(f"video is truncated: the container announces {n} "
+                                     "frames but the last one cannot be decoded", path=path,
+                                     where=f"frame {n - 1}")
     finally:
         cap.release()
     extra = {k: av_info[k] for k in ("container", "codec_name", "interlaced",

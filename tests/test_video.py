@@ -94,6 +94,60 @@ def test_bad_files_give_one_clear_error(kind, tmp_path, clip):
     assert str(path) in msg and "\n" not in msg
 
 
+def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96)):
+    """:func:`_write`'s frames as H.264 through FFmpeg (one keyframe: a stream that cannot
+    be seeked to its end), in container ``fmt``, the first frame at ``start_s``."""
+    from fractions import Fraction
+
+    import av
+
+    rate = Fraction(fps).limit_denominator(1001)
+    with av.open(str(path), "w", format=fmt) as out:
+        st = out.add_stream("libx264", rate=rate)
+        st.width, st.height, st.pix_fmt = *size, "yuv420p"
+        st.options = {"crf": "10", "g": "1000"}
+        tb = 1 / rate
+        for i in range(n):
+            fr = av.VideoFrame.from_ndarray(np.full((size[1], size[0], 3), 10 + 10 * i,
+                                                    np.uint8), format="rgb24")
+            fr.time_base = Fraction(1, 90000)
+            fr.pts = int(round((start_s + i * tb) * 90000))
+            for pkt in st.encode(fr):
+                out.mux(pkt)
+        for pkt in st.encode():
+            out.mux(pkt)
+    return path
+
+
+@pytest.mark.parametrize("kind", ["mpegts", "matroska-offset"])
+def test_containers_cameras_and_editors_write(kind, tmp_path):
+    """MPEG-TS (AVCHD camcorders, broadcast recorders: OpenCV cannot seek in it) and a
+    Matroska part cut from a longer recording (its first frame seconds after 0: OpenCV
+    counts the offset as frames) were refused as truncated.  Every frame is read, t from
+    0; a truncated copy of the part is still refused."""
+    rng = np.random.default_rng()
+    fps = float(rng.choice([25.0, 30000 / 1001, 30.0]))
+    n = int(rng.integers(18, 24))
+    start = float(rng.uniform(2.0, 90.0)) if kind == "matroska-offset" else 0.0
+    path = _write_av(tmp_path / ("clip.ts" if kind == "mpegts" else "clip.mkv"), n, fps,
+                     fmt="mpegts" if kind == "mpegts" else "matroska", start_s=start)
+    what = f"{kind}: {n} frames at {fps:.3f} fps from {start:.2f} s"
+    info = probe_video(path)
+    assert info.n_frames == n, f"{what}: {info.n_frames} frames"
+    frames = list(iter_frames(path, decoder=info.decoder))
+    assert [f.index for f in frames] == list(range(n)), what
+    np.testing.assert_allclose([f.t for f in frames], np.arange(n) / fps, atol=2e-3)
+    assert [_identity(f.image) for f in frames] == list(range(n)), what
+    k = int(rng.integers(1, n))
+    assert _identity(read_frame(path, k)) == k, what
+    if kind == "matroska-offset":
+        cut = tmp_path / "cut.mkv"
+        data = path.read_bytes()
+        cut.write_bytes(data[: len(data) * 3 // 5])
+        with pytest.raises(VideoError, match="truncated|cannot decode"):
+            probe_video(cut)
+
+
 def test_range_errors(clip):
     path, fps, n = clip
     with pytest.raises(VideoError, match="beyond the last frame"):
