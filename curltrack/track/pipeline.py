@@ -262,8 +262,13 @@ class _FrozenCheck:
     def __init__(self):
         self.prev = None  # the last frame's small grey image
         self.changes: list[float] = []  # the last non-frozen frames' changes
+        # the first change, judged against nothing: (its frame's key, change), until
+        # the frames after it can judge it (:meth:`late_repeat`)
+        self.first: tuple | None = None
+        self.judged = 0  # changes measured
+        self.repeats = 0  # frames found frozen
 
-    def __call__(self, image) -> bool:
+    def __call__(self, image, key=None) -> bool:
         import cv2
 
         g = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
@@ -273,11 +278,39 @@ class _FrozenCheck:
         if prev is None or prev.shape != small.shape:
             return False
         change = float(cv2.absdiff(small, prev).mean())
+        self.judged += 1
+        if self.judged == 1:
+            self.first = (key, change)
         typical = float(np.median(self.changes)) if self.changes else 0.0
         if typical > FROZEN_MIN_CHANGE and change < FROZEN_RATIO * typical:
+            self.repeats += 1
             return True  # (not a change of its own: the typical one is kept)
         self.changes = (self.changes + [change])[-FROZEN_HISTORY:]
         return False
+
+    def late_repeat(self):
+        """The key of the first judged frame, once, if the frames after it show it was a
+        repeat: the next frame changed (over ``FROZEN_MIN_CHANGE``, and the first by
+        less than ``FROZEN_RATIO`` of that) and a repeat follows within
+        ``FROZEN_HISTORY`` frames.  (Footage doubled from a lower rate - a clip exported
+        at 30 fps from a 60 fps timeline - repeats every other frame; the first repeat
+        had no change before it to be judged by, and stayed ok = 1, 6 mm off under a
+        sigma of 0.6 mm.  A rock at rest before its release changes as little, but no
+        repeat follows it.)  Else None."""
+        if self.first is None or self.judged < 2:
+            return None
+        key, change = self.first
+        nxt = self.changes[1] if len(self.changes) > 1 and self.changes[0] == change \
+            else None
+        if nxt is None or nxt <= FROZEN_MIN_CHANGE or change >= FROZEN_RATIO * nxt:
+            self.first = None
+            return None
+        if self.repeats:
+            self.first = None
+            return key
+        if self.judged > FROZEN_HISTORY:
+            self.first = None
+        return None
 
 
 def _anchor(markers_ice, markers_px, frame, max_gap: int):
@@ -412,12 +445,16 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         if not seen_markers and blank_frame(img, st):  # black lead-in
             rec.status = BLANK  # (before the detector sees it: it adapts to what it sees)
             continue
-        if fr.field is None and frozen(img):
+        if fr.field is None and frozen(img, len(records) - 1):
             # (neither follower sees it: it would tell them that everything stopped)
             rec.status = rec.grid_status = FROZEN
             if len(records) >= 2:  # (what it shows is what the frame before showed)
                 rec.markers_found = records[-2].markers_found
             continue
+        late = frozen.late_repeat() if fr.field is None else None
+        if late is not None and late >= 1:
+            records[late].status = records[late].grid_status = FROZEN
+            records[late].markers_found = records[late - 1].markers_found
         mf = fol.detect(img, k)
         pre_calib = None
         if mf is not None and mf.found.any() and not mf.found.all():
