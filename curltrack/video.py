@@ -502,6 +502,29 @@ def _av_last_time(path, first: float, full: bool = False) -> float | None:
     return last
 
 
+#: frame counts above this (a day at 240 fps) are not a count (OpenCV's for a stream
+#: with no duration in its header: -2.8e17 or its wrap-around)
+MAX_FRAME_COUNT = 24 * 3600 * 240
+
+
+@functools.lru_cache(maxsize=32)
+def _av_frame_count(path: str, size: int, mtime_ns: int) -> int:
+    """Frames FFmpeg decodes from the file's first video stream (streamed, once per file
+    version); 0 when it decodes none or cannot open it."""
+    try:
+        import av
+    except ImportError:
+        return 0
+    n = 0
+    try:
+        with av.open(path) as c:
+            for _ in c.decode(c.streams.video[0]):
+                n += 1
+    except Exception:  # noqa: BLE001 - a stream that stops decoding: what was decoded
+        pass
+    return n
+
+
 @functools.lru_cache(maxsize=32)
 def _offset_frame_count(path: str, size: int, mtime_ns: int, first: float, fps: float,
                         n: int) -> int | None:
@@ -557,6 +580,11 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
         h = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
         fourcc = int(cap.get(cv2.CAP_PROP_FOURCC))
         codec = "".join(chr((fourcc >> (8 * i)) & 0xFF) for i in range(4)).strip("\x00 ")
+        counted = False
+        if n <= 0 or n > MAX_FRAME_COUNT:
+            # no duration in the header (a live capture, a browser's recording, an
+            # interrupted one): OpenCV says -2.8e17 frames; FFmpeg counts them
+            n, counted = _av_frame_count(str(path), *_file_stamp(path)), True
         if n <= 0:
             raise VideoError("video has no frames (empty or unreadable stream)", path=path)
         if w <= 0 or h <= 0:
@@ -585,14 +613,15 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
                            "top_field_first": fm.order == "tff",
                            "colour_per_field": fm.colour_per_field}
                 from_content = fm.describe()
-        decoder = ("pyav" if av_info and (av_info["interlaced"] or black or not square)
+        decoder = ("pyav" if av_info and (av_info["interlaced"] or black or not square
+                                          or counted)
                    else "opencv")
         first = av_info.get("first_time", 0.0)
         if first * fps >= 1.0:
             n_offset = _offset_frame_count(str(path), *_file_stamp(path), first, fps, n)
             if n_offset is not None:  # (OpenCV's reading would stop "truncated")
                 n, decoder, check_end = n_offset, "pyav", False
-        if check_end and n > 1:
+        if check_end and n > 1 and not counted:
             cap.set(cv2.CAP_PROP_POS_FRAMES, n - 1)
             ok, img = cap.read()
             if not ok or img is None:

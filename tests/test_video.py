@@ -1,5 +1,7 @@
 """The frame reader: exact indices and container times, ranges, and clear errors."""
 
+import io
+
 import cv2
 import numpy as np
 import pytest
@@ -94,15 +96,30 @@ def test_bad_files_give_one_clear_error(kind, tmp_path, clip):
     assert str(path) in msg and "\n" not in msg
 
 
-def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96)):
+class _Pipe(io.RawIOBase):
+    """A file written as a stream (no seeking back): a live capture, a browser's
+    recording - the muxer cannot go back to write the duration."""
+
+    def __init__(self, f):
+        self.f = f
+
+    def writable(self):
+        return True
+
+    def write(self, b):
+        return self.f.write(b)
+
+
+def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96), live=False):
     """:func:`_write`'s frames as H.264 through FFmpeg (one keyframe: a stream that cannot
-    be seeked to its end), in container ``fmt``, the first frame at ``start_s``."""
+    be seeked to its end), in container ``fmt``, the first frame at ``start_s``;
+    ``live``: written as a stream, with no duration in the header."""
     from fractions import Fraction
 
     import av
 
     rate = Fraction(fps).limit_denominator(1001)
-    with av.open(str(path), "w", format=fmt) as out:
+    with open(path, "wb") as fh, av.open(_Pipe(fh) if live else fh, "w", format=fmt) as out:
         st = out.add_stream("libx264", rate=rate)
         st.width, st.height, st.pix_fmt = *size, "yuv420p"
         st.options = {"crf": "10", "g": "1000"}
@@ -119,18 +136,20 @@ def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96)):
     return path
 
 
-@pytest.mark.parametrize("kind", ["mpegts", "matroska-offset"])
+@pytest.mark.parametrize("kind", ["mpegts", "matroska-offset", "matroska-live"])
 def test_containers_cameras_and_editors_write(kind, tmp_path):
     """MPEG-TS (AVCHD camcorders, broadcast recorders: OpenCV cannot seek in it) and a
     Matroska part cut from a longer recording (its first frame seconds after 0: OpenCV
-    counts the offset as frames) were refused as truncated.  Every frame is read, t from
-    0; a truncated copy of the part is still refused."""
+    counts the offset as frames) were refused as truncated, a Matroska file written live
+    (no duration in its header: OpenCV counts -2.8e17 frames) as having no frames.
+    Every frame is read, t from 0; a truncated copy of the part is still refused."""
     rng = np.random.default_rng()
     fps = float(rng.choice([25.0, 30000 / 1001, 30.0]))
     n = int(rng.integers(18, 24))
     start = float(rng.uniform(2.0, 90.0)) if kind == "matroska-offset" else 0.0
     path = _write_av(tmp_path / ("clip.ts" if kind == "mpegts" else "clip.mkv"), n, fps,
-                     fmt="mpegts" if kind == "mpegts" else "matroska", start_s=start)
+                     fmt="mpegts" if kind == "mpegts" else "matroska", start_s=start,
+                     live=kind == "matroska-live")
     what = f"{kind}: {n} frames at {fps:.3f} fps from {start:.2f} s"
     info = probe_video(path)
     assert info.n_frames == n, f"{what}: {info.n_frames} frames"
