@@ -94,6 +94,9 @@ class VideoInfo:
         write it); for interlacing found in the content, what
         :attr:`FieldMotion.colour_per_field` shows.  Each field is then measured from
         its own colour, else from colour the two share.
+    streams : str
+        "" for a file with one video stream; else which of its video streams is measured
+        (:func:`main_stream`: the largest picture).
     """
 
     path: str
@@ -112,6 +115,7 @@ class VideoInfo:
     pixel_aspect: float = 1.0
     fields_from_content: str = ""
     colour_per_field: bool = True
+    streams: str = ""
 
     @property
     def content_field_order(self) -> str | None:
@@ -140,6 +144,8 @@ class VideoInfo:
         if abs(self.pixel_aspect - 1.0) > 1e-3:
             rot += (f", non-square pixels ({self.pixel_aspect:.4g}: resampled to square "
                         "pixels before measuring)")
+        if self.streams:
+            rot += f"; {self.streams}"
         fmt = self.codec_name or self.codec or "?"
         return (f"{fmt} in {self.container.split(',')[0] or '?'}, {self.width}x{self.height},"
                 f" {self.fps:.3f} fps, {scan}{rot}; decoded by "
@@ -221,6 +227,18 @@ def _open(path):
     return cap
 
 
+def main_stream(container):
+    """The video stream a shot is measured on: the largest picture (a camera's or an
+    editor's small preview or thumbnail stream may come first; cover art is left out),
+    the first of equals.  OpenCV reads the first video stream only, so a file whose main
+    stream is not the first is read through PyAV (:func:`probe_video`)."""
+    streams = [st for st in container.streams.video
+               if not getattr(st.disposition, "attached_pic", False)] \
+        or list(container.streams.video)
+    return max(streams, key=lambda st: (st.codec_context.width or 0)
+               * (st.codec_context.height or 0) * 2 - st.index)
+
+
 def _av_probe(path) -> dict:
     """What FFmpeg (PyAV) says of the first video frame: format, codec, scan, rotation.
 
@@ -232,7 +250,7 @@ def _av_probe(path) -> dict:
         return {}
     try:
         with av.open(str(path)) as c:
-            st = c.streams.video[0]
+            st = main_stream(c)
             cc = st.codec_context
             for fr in c.decode(st):
                 img = fr.to_ndarray(format="gray")
@@ -241,6 +259,10 @@ def _av_probe(path) -> dict:
                 order = int(getattr(cc, "field_order", 0) or 0)
                 sar = st.sample_aspect_ratio or cc.sample_aspect_ratio
                 return {"container": c.format.name, "codec_name": cc.name,
+                        "stream": (list(c.streams.video).index(st), len(c.streams.video),
+                                   st.index == c.streams.video[0].index),
+                        "size": (fr.width, fr.height),
+                        "fps": float(st.average_rate or st.guessed_rate or 0) or None,
                         "first_time": float(fr.time) if fr.time is not None else 0.0,
                         "pixel_aspect": float(sar) if sar else 1.0,
                         "interlaced": bool(fr.interlaced_frame),
@@ -371,7 +393,7 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
     rows = []
     try:
         with av.open(str(path)) as c:
-            st = c.streams.video[0]
+            st = main_stream(c)
             prev = win = win_c = None
             for i, fr in enumerate(c.decode(st)):
                 if i > n_frames:
@@ -481,7 +503,7 @@ def _av_last_time(path, first: float, full: bool = False) -> float | None:
     last = None
     try:
         with av.open(str(path)) as c:
-            st = c.streams.video[0]
+            st = main_stream(c)
             if c.duration is not None:
                 end_s = (c.duration + (c.start_time or 0)) / 1e6
                 try:
@@ -494,7 +516,7 @@ def _av_last_time(path, first: float, full: bool = False) -> float | None:
                     last = None
         if last is None and full:
             with av.open(str(path)) as c:
-                for fr in c.decode(c.streams.video[0]):
+                for fr in c.decode(main_stream(c)):
                     if fr.time is not None:
                         last = float(fr.time)
     except Exception:  # noqa: BLE001 - any FFmpeg failure: the caller's checks report it
@@ -518,7 +540,7 @@ def _av_frame_count(path: str, size: int, mtime_ns: int) -> int:
     n = 0
     try:
         with av.open(path) as c:
-            for _ in c.decode(c.streams.video[0]):
+            for _ in c.decode(main_stream(c)):
                 n += 1
     except Exception:  # noqa: BLE001 - a stream that stops decoding: what was decoded
         pass
@@ -603,6 +625,16 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
             raise VideoError(f"container gives no usable frame rate ({fps!r}); set "
                              "[camera].fps in the rig", path=path)
         av_info = _av_probe(path)
+        index, n_video, first_stream = av_info.get("stream", (0, 1, True))
+        streams = ""
+        if n_video > 1:
+            streams = (f"video stream {index} of {n_video} measured (the largest picture)"
+                       if not first_stream else
+                       f"the first of {n_video} video streams measured (the largest picture)")
+        if not first_stream:
+            # (OpenCV reads the first video stream, a preview: the main one by FFmpeg)
+            n, counted = _av_frame_count(str(path), *_file_stamp(path)), True
+            w, h, fps = av_info["size"][0], av_info["size"][1], av_info["fps"] or fps
         black = int(img.max()) < 8 and av_info.get("peak", 0) >= 8
         square = abs(av_info.get("pixel_aspect", 1.0) - 1.0) <= 1e-3
         from_content = ""
@@ -645,7 +677,7 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
                                      "colour_per_field")
              if k in av_info}
     return VideoInfo(str(path), n, fps, w, h, codec, n / fps, decoder=decoder,
-                     fields_from_content=from_content, **extra)
+                     fields_from_content=from_content, streams=streams, **extra)
 
 
 def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
@@ -820,7 +852,7 @@ def _iter_pyav(path, start, end, exclude, fps_override, fields, field_order=None
     except Exception as exc:  # noqa: BLE001
         raise VideoError(f"cannot open as a video ({exc})", path=path) from None
     try:
-        st = container.streams.video[0]
+        st = main_stream(container)
         st.thread_count = max(decoder_threads(), 1)
         fps = float(st.average_rate or st.guessed_rate or 0)
         check_rig_fps(fps, fps_override, path)

@@ -110,16 +110,22 @@ class _Pipe(io.RawIOBase):
         return self.f.write(b)
 
 
-def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96), live=False):
+def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96), live=False,
+              preview=False):
     """:func:`_write`'s frames as H.264 through FFmpeg (one keyframe: a stream that cannot
     be seeked to its end), in container ``fmt``, the first frame at ``start_s``;
-    ``live``: written as a stream, with no duration in the header."""
+    ``live``: written as a stream, with no duration in the header; ``preview``: after a
+    first video stream of black frames at half the size (a camera's preview)."""
     from fractions import Fraction
 
     import av
 
     rate = Fraction(fps).limit_denominator(1001)
     with open(path, "wb") as fh, av.open(_Pipe(fh) if live else fh, "w", format=fmt) as out:
+        small = None
+        if preview:
+            small = out.add_stream("libx264", rate=rate)
+            small.width, small.height, small.pix_fmt = size[0] // 2, size[1] // 2, "yuv420p"
         st = out.add_stream("libx264", rate=rate)
         st.width, st.height, st.pix_fmt = *size, "yuv420p"
         st.options = {"crf": "10", "g": "1000"}
@@ -131,28 +137,40 @@ def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96), live=False):
             fr.pts = int(round((start_s + i * tb) * 90000))
             for pkt in st.encode(fr):
                 out.mux(pkt)
-        for pkt in st.encode():
-            out.mux(pkt)
+            if small is not None:
+                for pkt in small.encode(av.VideoFrame.from_ndarray(
+                        np.zeros((size[1] // 2, size[0] // 2, 3), np.uint8), format="rgb24")):
+                    out.mux(pkt)
+        for stream in (st, small) if small is not None else (st,):
+            for pkt in stream.encode():
+                out.mux(pkt)
     return path
 
 
-@pytest.mark.parametrize("kind", ["mpegts", "matroska-offset", "matroska-live"])
+@pytest.mark.parametrize("kind", ["mpegts", "matroska-offset", "matroska-live",
+                                  "preview-first"])
 def test_containers_cameras_and_editors_write(kind, tmp_path):
     """MPEG-TS (AVCHD camcorders, broadcast recorders: OpenCV cannot seek in it) and a
     Matroska part cut from a longer recording (its first frame seconds after 0: OpenCV
     counts the offset as frames) were refused as truncated, a Matroska file written live
-    (no duration in its header: OpenCV counts -2.8e17 frames) as having no frames.
-    Every frame is read, t from 0; a truncated copy of the part is still refused."""
+    (no duration in its header: OpenCV counts -2.8e17 frames) as having no frames; a
+    file whose first video stream is a small preview had the preview measured.  Every
+    frame of the main stream is read, t from 0; a truncated copy of the part is still
+    refused."""
     rng = np.random.default_rng()
     fps = float(rng.choice([25.0, 30000 / 1001, 30.0]))
     n = int(rng.integers(18, 24))
     start = float(rng.uniform(2.0, 90.0)) if kind == "matroska-offset" else 0.0
-    path = _write_av(tmp_path / ("clip.ts" if kind == "mpegts" else "clip.mkv"), n, fps,
-                     fmt="mpegts" if kind == "mpegts" else "matroska", start_s=start,
-                     live=kind == "matroska-live")
+    suffix = {"mpegts": ".ts", "preview-first": str(rng.choice([".mkv", ".mp4"]))}.get(
+        kind, ".mkv")
+    path = _write_av(tmp_path / f"clip{suffix}", n, fps, start_s=start,
+                     fmt={".ts": "mpegts", ".mkv": "matroska", ".mp4": "mp4"}[suffix],
+                     live=kind == "matroska-live", preview=kind == "preview-first")
     what = f"{kind}: {n} frames at {fps:.3f} fps from {start:.2f} s"
     info = probe_video(path)
     assert info.n_frames == n, f"{what}: {info.n_frames} frames"
+    assert (info.width, info.height) == (160, 96), what
+    assert ("stream 1 of 2" in info.describe()) is (kind == "preview-first"), what
     frames = list(iter_frames(path, decoder=info.decoder))
     assert [f.index for f in frames] == list(range(n)), what
     np.testing.assert_allclose([f.t for f in frames], np.arange(n) / fps, atol=2e-3)
