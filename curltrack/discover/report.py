@@ -195,6 +195,10 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
     n = fit0.n
     rms0 = _rms_by_coord(base, fit0.r_raw)
     vals, errs = _baseline_params(fit0)
+    for j, s in enumerate(shots):  # (offsets in the series' own frame)
+        for name, o in zip(("x0", "y0", "theta0"), s.origin):
+            if o and f"{name}[{j}]" in vals:
+                vals[f"{name}[{j}]"] += o
     cand_bounds = cand_bounds or {}
     base_bound = at_bound(fit0, base.bounds)
     bound_warnings = [f"baseline ({base.baseline}) parameter {b}: the baseline does not "

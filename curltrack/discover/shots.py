@@ -73,6 +73,9 @@ class ShotData:
     t_stop_rotation: float | None = None
     start: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    #: what was taken off x, y (m) and theta (rad) of a series measured from another
+    #: origin (:func:`_recentre`); the report gives the offsets in the series' frame
+    origin: tuple = (0.0, 0.0, 0.0)
 
     @property
     def curls(self) -> bool:
@@ -118,6 +121,7 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
     frame = d["frame"].to_numpy(int)
     obs = {c: d[c].to_numpy(float) for c in COORDS}
     t_tr, t_rot, warnings = series_stops(series)
+    obs, origin = _recentre(t, obs, name, warnings)
     travel = float(np.nanmax(np.hypot(obs["x"] - obs["x"][0], obs["y"] - obs["y"][0])))
     has_theta = np.isfinite(obs["theta"])
     theta_measured = bool(series.theta_measured and has_theta.sum() >= MIN_ROWS)
@@ -160,7 +164,8 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
                     heading_rad=math.radians(float(heading)) if heading is not None else 0.0,
                     translates=translates, spins=spins, spin=spin,
                     theta_measured=theta_measured,
-                    t_stop_translation=t_tr, t_stop_rotation=t_rot, warnings=warnings)
+                    t_stop_translation=t_tr, t_stop_rotation=t_rot, warnings=warnings,
+                    origin=origin)
     shot.start = _starting_values(series, shot, rig or default_rig())
     if not theta_measured and translates:
         # the side of the spin from the data: the curl's (a_T < 0 in the fit's frame is
@@ -176,6 +181,52 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
                 warnings.append(f"{name}: the curl ({a:.2g} m/s^2) does not tell the "
                                 "spin's side within 2 sigma; taken from its sign")
     return shot
+
+
+#: an origin (the rock at t = 0) further than this from the series' zero (m, rad) is
+#: taken off before fitting: half the bounds of the offsets x0, y0, theta0
+#: (:mod:`curltrack.physics.params`)
+RECENTRE_BEYOND = 0.5
+#: the first this many seconds of rows (at least 5) place the origin
+RECENTRE_WINDOW_S = 1.0
+
+
+def _recentre(t, obs, name, warnings):
+    """``obs`` measured from the rock's own origin, and what was taken off (x, y, theta).
+
+    The contract allows any origin (docs/files.md), and ``fit`` fits one; the joint
+    model's per-shot offsets are bounded to +-1 m / rad.  A shot in rink coordinates
+    (2 m and -6 m off) held them at their bounds: every baseline parameter at a bound,
+    verdict ``unexplained`` and a warning blaming the instrument.  Where the rock at
+    t = 0 (a quadratic through the first second, extrapolated) lies beyond
+    :data:`RECENTRE_BEYOND` of zero, it is taken off; the report adds it back to the
+    offsets."""
+    origin = []
+    for c in COORDS:
+        v = obs[c]
+        ok = np.isfinite(v)
+        tk, vk = t[ok], v[ok]
+        if tk.size == 0:
+            origin.append(0.0)
+            continue
+        sel = tk <= tk[0] + RECENTRE_WINDOW_S
+        sel[:5] = True
+        deg = min(2, int(sel.sum()) - 1)
+        o = float(np.polyval(np.polyfit(tk[sel], vk[sel], deg), 0.0)) if deg >= 1 else \
+            float(vk[0])
+        origin.append(o)
+    x0, y0, th0 = origin
+    if max(abs(x0), abs(y0)) <= RECENTRE_BEYOND:
+        x0 = y0 = 0.0
+    if abs(th0) <= RECENTRE_BEYOND:
+        th0 = 0.0
+    if not (x0 or y0 or th0):
+        return obs, (0.0, 0.0, 0.0)
+    warnings.append(f"{name}: measured from another origin (the rock at t = 0 at x "
+                    f"{x0:.3g} m, y {y0:.3g} m, theta {th0:.3g} rad): taken off for the "
+                    "fit; the offsets x0, y0, theta0 are reported in the series' frame")
+    return {"x": obs["x"] - x0, "y": obs["y"] - y0, "theta": obs["theta"] - th0}, \
+        (x0, y0, th0)
 
 
 def _starting_values(series: Series, shot: ShotData, rig) -> dict:
