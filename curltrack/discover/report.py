@@ -34,14 +34,16 @@ HELDOUT_WORSE_LEVEL = 0.05
 
 
 def at_bound(fit, bounds: dict, names=None) -> list:
-    """Free parameters of ``fit`` within 1e-6 of their span (or 1e-9) of a bound."""
+    """Free parameters of ``fit`` within 1e-6 of a bound, relative to the bound's own
+    size (1 for a bound at 0) and never more than 1e-6 of their span: a friction
+    coefficient of 1e-7 is not at a lower bound of 1e-15."""
     out = []
     for k in (fit.free if names is None else [n for n in names if n in fit.free]):
         lo, hi = bounds.get(k, (None, None))
         v = fit.values[k]
-        span = (hi - lo) if lo is not None and hi is not None else abs(v) + 1.0
-        tol = max(1e-6 * min(span, abs(v) + 1.0), 1e-9)
+        span = (hi - lo) if lo is not None and hi is not None else np.inf
         for b in (lo, hi):
+            tol = 1e-6 * min(span, abs(b) if b else 1.0) if b is not None else 0.0
             if b is not None and abs(v - b) <= tol:
                 out.append(f"{k} = {v:.4g} at its bound {b:.4g}")
     return out

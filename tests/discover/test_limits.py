@@ -108,3 +108,21 @@ def test_a_series_from_another_origin_gives_the_same_verdict():
     assert abs(p["x0[0]"] - dx) < 0.01 and abs(p["y0[0]"] - dy) < 0.01, (what, p)
     assert abs(p["theta0[0]"] - dth) < 0.01 and abs(p["skew[0]"] - turn) < 0.005, (what, p)
     assert any("another origin" in w for w in b.warnings), what
+
+
+def test_draws_with_the_papers_slowest_spin_decay_are_described():
+    """The paper's draws have lambda_theta 1.20-1.50 (phi_theta -4 to -1): near 1.2 the
+    rotation's alpha_theta is ~1e-7 - 1e-9.  The baseline's bounds (phi_theta >= -3,
+    alpha_theta >= 1e-6) held such clean draws at them: verdict unexplained (a helper's
+    independent simulator; here at phi_theta -2.8, -3.5 and -5 alike)."""
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    phi = float(rng.uniform(-5.0, -2.5))
+    m = ShotModel(v0=rng.uniform(1.5, 2.2), omega0=rng.choice([-1, 1]) * rng.uniform(0.8, 2.5),
+                  phi_theta=phi)
+    s = simulate_series(m, noise_m=0.002, noise_rad=0.005, seed=seed)
+    rep = discover(s, seed=1, n_boot=200)
+    p, e = rep.baseline["params"], rep.baseline["params_err"]
+    what = f"seed {seed}: phi_theta {phi:.2f} (lambda_theta {m.lambda_theta:.3f})"
+    assert rep.verdict == "none", (what, rep.verdict, rep.warnings)
+    assert abs(p["phi_theta"] - phi) < max(4 * e["phi_theta"], 0.02), (what, p["phi_theta"])
