@@ -294,8 +294,12 @@ def _frame_check(rep, samples):
     detail = (f"{len(samples) - len(lost)}/{len(samples)} sampled frames measurable as "
               "track measures them")
     if lost:
+        reasons: dict = {}   # (frames with one reason together)
+        for f, why in lost:
+            reasons.setdefault(why, []).append(f)
         rep.checks.append(Check("frames", "warn", detail + "; " + "; ".join(
-            f"frame {f}: {why}" for f, why in lost), "track will give these frames ok = 0 "
+            f"frame{'s' if len(fs) > 1 else ''} {_frames_text(fs)}: {why}"
+            for why, fs in reasons.items()), "track will give these frames ok = 0 "
             "(see the checks below for the causes)", values))
     else:
         rep.checks.append(Check("frames", "ok", detail, values=values))
@@ -316,10 +320,14 @@ def _marker_checks(rep, rig, samples):
               "per_colour": counts}
     if not all_found:
         missing = [c for c, k in counts.items() if k == 0] or list(counts)
+        from .track.markers import NO_COLOUR
+
+        advice = (NO_COLOUR if any(NO_COLOUR in s["status"] for _, s in samples) else
+                  "check the [[markers]] colours in the rig against the video, and that "
+                  "the rock is in view")
         rep.checks.append(Check("markers", "fail", detail,
-                                f"no marker of colour {', '.join(missing)} seen: check the "
-                                "[[markers]] colours in the rig against the video, and "
-                                "that the rock is in view", values))
+                                f"no marker of colour {', '.join(missing)} seen: {advice}",
+                                values))
     elif len(all_found) < n:
         lost = [f for f, _ in samples if f not in all_found]
         rep.checks.append(Check("markers", "warn", detail,

@@ -719,3 +719,22 @@ class MarkerDetector:
             self.colors_lab[i] = (1 - _ADAPT) * self.colors_lab[i] + _ADAPT * obs_lab
         contrast = float(np.linalg.norm(_weigh(obs_lab) - _weigh(bg_lab)))
         return np.array([cx, cy]), sigma, sw, contrast
+
+
+#: A frame's colour (max - min of B, G, R per pixel, every 4th pixel) whose 99th
+#: percentile is under this many grey levels has none: a monochrome camera or a
+#: black-and-white export, where no marker can be found by its colour
+COLOURLESS_LEVELS = 6.0
+#: what a colourless frame's status says (track's ok = 0 reason, doctor's advice)
+NO_COLOUR = ("the image has no colour (grey pixels only, e.g. a monochrome camera or a "
+             "black-and-white export): markers are found by their colour - measure the "
+             "camera's colour recording")
+
+
+def colourless(image) -> bool:
+    """Whether a BGR frame has no colour (:data:`COLOURLESS_LEVELS`)."""
+    if image.ndim < 3 or image.shape[2] < 3:
+        return True
+    px = image[::4, ::4].astype(np.int16)
+    chroma = px.max(axis=2) - px.min(axis=2)
+    return float(np.percentile(chroma, 99)) < COLOURLESS_LEVELS

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import CurltrackError, TrackingError
 from ..rig import Rig
-from .markers import MarkerDetector
+from .markers import NO_COLOUR, MarkerDetector, colourless
 from .outline import outline_radius
 from .parallax import similarity_fit
 from .shutter import to_one_instant
@@ -313,6 +313,11 @@ class _FrozenCheck:
         return None
 
 
+def _no_colour(records) -> str:
+    """": " + why no marker can be found, when the frames have no colour, else ""."""
+    return f": {NO_COLOUR}" if any(NO_COLOUR in r.status for r in records) else ""
+
+
 def _anchor(markers_ice, markers_px, frame, max_gap: int):
     """The markers seen in ``frame`` (undistorted px) and their positions on the ice
     extrapolated from the last two measured frames (constant velocity; the rock's motion
@@ -480,11 +485,14 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         if not found:
             rec.status = ("rock/markers not found" if mf is None else
                           f"markers not found ({mf.message})")
+            if not seen_markers and colourless(img):
+                rec.status = f"markers not found: {NO_COLOUR}"
             if strict and not seen_markers and len(records) >= st.give_up_frames:
                 raise TrackingError(
                     f"no markers of the rig's colours "
                     f"({', '.join(m.color for m in rig.markers)}) found in frames "
-                    f"{records[0].frame}-{fr.index}", path=path, where=f"frame {fr.index}")
+                    f"{records[0].frame}-{fr.index}" + _no_colour(records), path=path,
+                    where=f"frame {fr.index}")
         seen_markers = seen_markers or found
         mask = fol.mask(img.shape, k)  # (nothing masked before the markers were found)
         if tracker is None:
@@ -588,7 +596,8 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     if records and not seen_markers:
         raise TrackingError(
             f"no markers of the rig's colours ({', '.join(m.color for m in rig.markers)}) "
-            f"found in frames {records[0].frame}-{records[-1].frame}", path=path)
+            f"found in frames {records[0].frame}-{records[-1].frame}" + _no_colour(records),
+            path=path)
     if records and calib is None:
         raise TrackingError(f"no grid found in frames {records[0].frame}-{records[-1].frame}"
                             f": {calib_msg}", path=path)

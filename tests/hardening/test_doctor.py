@@ -58,6 +58,24 @@ def test_wrong_colours_are_fatal(cli, hdir, good_clip):
     assert res.exit_code == 1 and _status(json.loads(res.stdout))["markers"] == "fail"
 
 
+def test_a_video_without_colour_is_named(cli, hdir, rig_file, good_clip):
+    """A monochrome camera or a black-and-white export: track and doctor said no marker
+    of the rig's colours was seen and told the user to check the rig's colours; both
+    now say the video has no colour."""
+    import cv2
+
+    video, _, _ = good_clip
+    grey = edit_video(video, hdir / "doctor_grey.mp4", lambda k, img: cv2.cvtColor(
+        cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR))
+    line = cli.fails("track", grey, "--rig", rig_file, "-o", hdir / "grey.csv",
+                     output=hdir / "grey.csv", names=[grey, "no colour"])
+    assert "markers" in line
+    res = cli("doctor", grey, "--rig", rig_file, "--json")
+    checks = {c["name"]: c for c in json.loads(res.stdout)["checks"]}
+    assert res.exit_code == 1 and checks["markers"]["status"] == "fail"
+    assert "no colour" in checks["markers"]["advice"], checks["markers"]
+
+
 def test_hidden_grid_is_fatal(cli, hdir, rig_file, good_clip):
     video, truth, _ = good_clip
     tr = truth.data
