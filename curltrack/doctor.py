@@ -106,7 +106,7 @@ class DoctorReport:
 
 def _sample(verdict, image, rig, det):
     """What doctor reports of one frame, from ``track``'s verdict on it (dict)."""
-    from .track.parallax import similarity_fit
+    from .track.parallax import mirrored_layout, similarity_fit
 
     out = {"markers_found": list(verdict.markers_found), "grid": None,
            "grid_msg": verdict.grid_status, "status": verdict.status, "scale": np.nan,
@@ -136,6 +136,7 @@ def _sample(verdict, image, rig, det):
             from .track.outline import outline_radius
 
             c, _, out["scale"], _ = similarity_fit(L, ice)
+            out["mirrored"] = mirrored_layout(L, ice)
             R = rig.rock_diameter_m / 2
             out["outline_scale"] = outline_radius(image, cal.H, cal.K, cal.dist, c, R)[0] / R
     return out
@@ -401,7 +402,9 @@ def _geometry_checks(rep, rig, samples):
 
     s = float(np.median(scales))
     depth = rig.grid_depth_m / ICE_REFRACTIVE_INDEX
-    mismatch = layout_scale_mismatch(s, rig) or scale_check(
+    mirrored = float(np.mean([x.get("mirrored", False) for _, x in samples
+                              if np.isfinite(x["scale"])]))
+    mismatch = layout_scale_mismatch(s, rig, mirrored) or scale_check(
         [x["scale"] for _, x in samples], [x["outline_scale"] for _, x in samples], rig,
         rig.rock_height_m + depth, depth)
     if mismatch:  # (track stops with this error)

@@ -27,7 +27,7 @@ import numpy as np
 from .._stats import robust_sigma
 
 __all__ = ["similarity_fit", "camera_centre", "focal_for_height", "HeightEstimate",
-           "estimate_height", "correct_parallax", "layout_scale_mismatch",
+           "estimate_height", "correct_parallax", "layout_scale_mismatch", "mirrored_layout",
            "ICE_REFRACTIVE_INDEX"]
 
 #: Threads under ``depth`` of ice look ``depth / n`` deep (paraxial refraction).
@@ -40,12 +40,33 @@ ICE_REFRACTIVE_INDEX = 1.31
 # spacing, or every other thread invisible - and every position would be scaled wrong.
 
 
-def layout_scale_mismatch(scale: float, rig) -> str:
+def mirrored_layout(layout, pts) -> bool:
+    """Whether the markers ``pts`` (m, on the ice) are the mirror image of the rig's
+    ``layout``: it fits them at less than a quarter of the residual and a plausible
+    scale (0.5-2), where the layout itself does not.  Two markers (or collinear ones)
+    look alike mirrored: False."""
+    L = np.asarray(layout, float)
+    if len(L) < 3 or np.linalg.matrix_rank(L[1:] - L[0], tol=1e-6) < 2:
+        return False
+    _, _, s, rms = similarity_fit(L, pts)
+    _, _, sm, rms_m = similarity_fit(L * np.array([-1.0, 1.0]), pts)
+    return bool(rms_m < 0.25 * rms and 0.5 < sm < 2.0)
+
+
+def layout_scale_mismatch(scale: float, rig, mirrored: float = 0.0) -> str:
     """Why the apparent layout scale ``scale`` (median over frames) contradicts the rig,
-    or "" when it is plausible (``rig.tracking.layout_scale_min`` .. ``_max``)."""
+    or "" when it is plausible (``rig.tracking.layout_scale_min`` .. ``_max``).
+    ``mirrored``: the share of frames whose markers are the rig layout's mirror image
+    (:func:`mirrored_layout`; over half names that as the cause)."""
     lo, hi = rig.tracking.layout_scale_min, rig.tracking.layout_scale_max
     if lo <= scale <= hi:
         return ""
+    if mirrored > 0.5:
+        return (f"the markers are the mirror image of the rig's [[markers]] layout in "
+                f"{100 * mirrored:.0f} % of the frames (their scale against the grid "
+                f"{scale:.2f}x, expected {lo:g}-{hi:g}): the video is mirrored (filmed via "
+                "a mirror, or flipped in an editor: flip it back), or the rig's marker "
+                "positions are mirrored (x is to the right of +y, seen from above)")
     hint = (": is every other thread invisible (a thread colour like the ice)? Then give "
             "the spacing and colour of the threads that show" if scale < 0.65 else "")
     return (f"the markers measure {scale:.2f}x their rig layout against the grid (expected "

@@ -21,7 +21,7 @@ from ..errors import CurltrackError, TrackingError
 from ..rig import Rig
 from .markers import NO_COLOUR, MarkerDetector, colourless
 from .outline import outline_radius
-from .parallax import similarity_fit
+from .parallax import mirrored_layout, similarity_fit
 from .shutter import to_one_instant
 
 __all__ = ["track_video", "FrameRecord"]
@@ -96,6 +96,7 @@ class FrameRecord:
     contrast: float = np.nan
     segment: int = 0  # the grid's cell-index segment (GridPose.segment)
     outline_m: float = np.nan  # radius of the rock's outline (m, lattice; track.outline)
+    mirrored: bool = False  # the markers are the rig layout's mirror image (parallax)
     notes: list = dc_field(default_factory=list)
     clicked: bool = False  # measured from a corrections file's clicks
     markers_found: tuple = ()  # per rig marker (doctor's checklist)
@@ -556,6 +557,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         rec.segment = pose.segment
         markers_ice = (markers_ice + [(k, ice)])[-2:]
         c, phi, s, _ = similarity_fit(L, ice)
+        rec.mirrored = mirrored_layout(L, ice)
         if seen_at is not None:
             rate = _rock_rate(records, rec)
             if rate is not None:  # each marker seen at its own row's time: one instant

@@ -374,7 +374,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                   np.array([r.outline_m for r in records])[ok] / (rig.rock_diameter_m / 2),
                   rig, rig.rock_height_m + rig.grid_depth_m / ICE_REFRACTIVE_INDEX,
                   rig.grid_depth_m / ICE_REFRACTIVE_INDEX)
-        mismatch = (layout_scale_mismatch(float(np.median(scale[ok])), rig)
+        mirrored = float(np.mean([records[i].mirrored for i in np.flatnonzero(ok)]))
+        mismatch = (layout_scale_mismatch(float(np.median(scale[ok])), rig, mirrored)
                     or scale_check(*rulers))
         if mismatch:
             raise TrackingError(mismatch, path=path, where=f"frames {frame[0]}-{frame[-1]}")

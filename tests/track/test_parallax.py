@@ -77,3 +77,33 @@ def test_camera_centre_follows_the_lattice_frame_for_a_sheared_view(seed):
     assert np.allclose(Cf[:2] - far, C[:2], atol=1e-9), f"seed {seed}: {Cf[:2] - far - C[:2]}"
     assert Cf[2] == pytest.approx(C[2], abs=1e-9)
     assert focal_for_height(T @ Hm, C[2], pp) == pytest.approx(cam.f, rel=1e-6)
+
+
+def test_a_mirrored_marker_layout_is_recognised():
+    """A mirrored video (filmed via a mirror, or flipped in an editor) of a rock with
+    three or more markers: they are the rig layout's mirror image, and the error names
+    that (it blamed the grid's threads: 'the markers measure 0.01x their rig layout').
+    Two markers (or collinear ones) look alike mirrored."""
+    from curltrack.rig import default_rig
+    from curltrack.track.parallax import layout_scale_mismatch, mirrored_layout
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        m = int(rng.integers(3, 6))
+        r, a = rng.uniform(0.03, 0.12, m), rng.uniform(0, 2 * np.pi, m)
+        L = np.c_[r * np.cos(a), r * np.sin(a)]
+        if np.linalg.svd(L - L.mean(0), compute_uv=False)[-1] < 0.02:
+            continue   # (nearly collinear: a mirror cannot be seen)
+        phi, s = rng.uniform(0, 2 * np.pi), rng.uniform(1.02, 1.3)
+        R = np.array([[np.cos(phi), -np.sin(phi)], [np.sin(phi), np.cos(phi)]])
+        c = rng.uniform(-5, 5, 2)
+
+        def seen(layout):
+            return c + s * layout @ R.T + rng.normal(0, 0.001, layout.shape)
+
+        assert not mirrored_layout(L, seen(L)), (seed, L)
+        assert mirrored_layout(L, seen(L * [-1.0, 1.0])), (seed, L)
+        assert not mirrored_layout(L[:2], seen(L[:2] * [-1.0, 1.0])), seed
+    msg = layout_scale_mismatch(0.01, default_rig(), mirrored=1.0)
+    assert "mirror image" in msg and "thread" not in msg
