@@ -236,10 +236,14 @@ def _window(t, t_stop, fixed_stop, name, coord, path, warnings):
         if fixed_stop:
             raise FitError(f"the rock never stopped in {coord} within the series "
                            "(no stop time); --fixed-stop needs one", path=path)
-        warnings.append(f"{name}: the rock did not stop within the series; t_F is "
-                        "extrapolated beyond the last frame")
+        # (no rows at rest after the stop - or none at all: the rock may have stopped
+        # at the series' last rows, as an instrument that stops recording with the rock
+        # does; a bound at the last row held t_F there, with lambda_y 4 sigma off)
+        warnings.append(f"{name}: no stop within the series (no rows at rest after it); "
+                        "t_F is fitted from the motion alone, extrapolated where it lies "
+                        "beyond the last row")
         use = t >= 0
-        return use, 1.3 * t_last, (t_last, 20.0 * t_last + 1.0)
+        return use, 1.05 * t_last, (0.5 * t_last, 20.0 * t_last + 1.0)
     t_stop = float(t_stop)
     if t_stop <= float(t[0]):
         raise FitError(f"{coord} fit: the stop time (t = {t_stop:g} s) is at the start of "
