@@ -82,7 +82,8 @@ def _friction_law(fit, p, translating, cov):
 
     j = next(i for i, s in enumerate(translating))
     alpha = "alpha_y" if "alpha_y" in fit.free else f"alpha_y[{j}]"
-    keys = [alpha, "phi_y", "dphi_low", "u_knee_m_per_s"]
+    phi_key = f"phi_y[{j}]" if f"phi_y[{j}]" in fit.free else "phi_y"
+    keys = [alpha, phi_key, "dphi_low", "u_knee_m_per_s"]
     c = _cov_of(fit, keys, cov)
     th = np.array([fit.values[k] for k in keys])
 

@@ -125,13 +125,19 @@ class JointModel:
         Supplies R and r of the rock.
     """
 
-    def __init__(self, shots, baseline: str = "paper", cand: Candidate | None = None, rig=None):
+    def __init__(self, shots, baseline: str = "paper", cand: Candidate | None = None, rig=None,
+                 phi_per_shot: bool = False):
         from ..physics import ShotModel, simulate
 
         self._ShotModel, self._simulate = ShotModel, simulate
         #: candidate values held fixed (a scan location, a pick's shot index)
         self.cand_fixed: dict | None = None
         rig = rig or default_rig()
+        self.rig = rig
+        #: each shot its own friction exponents (``phi_y[i]``, ``phi_theta[i]``): the
+        #: paper saw lambda_y 1.77-1.90 and lambda_theta 1.20-1.50 from shot to shot on
+        #: one sheet (:func:`curltrack.discover.discover` chooses it by BIC)
+        self.phi_per_shot = bool(phi_per_shot and len(shots) > 1 and baseline == "paper")
         self.R, self.r_band = rig.inertia_radius_m, rig.band_radius_m
         self.shots, self.baseline, self.cand = shots, baseline, cand
         self._sims: dict = {}
@@ -159,13 +165,20 @@ class JointModel:
         # rotations on one sheet span lambda_theta 1.55-1.66; a draw's rotation stops
         # with its translation): phi is shared, alpha is each shot's own
         self.alpha_per_shot = len(shots) > 1
+        per_shot = ("alpha",) + (("phi",) if self.phi_per_shot else ())
         if self.alpha_per_shot:
-            free_shared = [n for n in free_shared if not n.startswith("alpha")]
+            free_shared = [n for n in free_shared if not n.startswith(per_shot)]
         self.free = list(free_shared)
         for i, s in enumerate(shots):
             if self.alpha_per_shot:
                 for name, use in (("alpha_y", s.translates),
                                   ("alpha_theta", s.spins and s.theta_measured)):
+                    self.values[f"{name}[{i}]"] = float(s.start.get(name, self.values[name]))
+                    if use:
+                        self.free.append(f"{name}[{i}]")
+            if self.phi_per_shot:
+                for name, use in (("phi_y", s.translates),
+                                  ("phi_theta", s.spins and s.theta_measured)):
                     self.values[f"{name}[{i}]"] = float(s.start.get(name, self.values[name]))
                     if use:
                         self.free.append(f"{name}[{i}]")
@@ -230,11 +243,12 @@ class JointModel:
         if s.theta_measured or s.omega0_curl_end is not None:
             # (position-only with the curl's end fitted: a spin under the shared rotation
             # law whose size says when it stops)
-            spin = dict(omega0=v[f"omega0[{i}]"], phi_theta=v["phi_theta"],
+            spin = dict(omega0=v[f"omega0[{i}]"],
+                        phi_theta=v.get(f"phi_theta[{i}]", v["phi_theta"]),
                         alpha_theta=v.get(f"alpha_theta[{i}]", v["alpha_theta"]))
         else:  # position-only: the curl's side, a spin that lasts as long as the slide
             spin = dict(omega0=float(s.spin), alpha_theta=None)
-        model = self._ShotModel(v0=v[f"v0[{i}]"], phi_y=v["phi_y"],
+        model = self._ShotModel(v0=v[f"v0[{i}]"], phi_y=v.get(f"phi_y[{i}]", v["phi_y"]),
                                 alpha_y=v.get(f"alpha_y[{i}]", v["alpha_y"]),
                                 a_T=v["a_T"], R=self.R, r=self.r_band, **spin)
         eff = effects_for(self.cand, self._effect_values(v), i, self.shots)

@@ -191,7 +191,8 @@ def heldout_worse_p(before: dict, after: dict, coord: str) -> float:
 
 def effect_columns(base: JointModel, fit0: FitOut, cand, loc: dict) -> np.ndarray:
     """Whitened d(model)/d(size params) at effect size 0 and location ``loc``."""
-    m = JointModel(base.shots, base.baseline, cand)
+    m = JointModel(base.shots, base.baseline, cand, rig=base.rig,
+                   phi_per_shot=base.phi_per_shot)
     m.values.update(fit0.values)
     m.cand_fixed = dict(loc)
     for p in cand.location:
@@ -387,7 +388,8 @@ def _close_tol(locs) -> float:
 def _start_model(base, fit0, cand, E, loc, sub) -> JointModel:
     """Baseline + candidate at scan location ``loc``, sizes from the linear solution."""
     coef, *_ = np.linalg.lstsq(np.column_stack([fit0.J, E]), fit0.r, rcond=None)
-    m = JointModel(base.shots, base.baseline, cand)
+    m = JointModel(base.shots, base.baseline, cand, rig=base.rig,
+                   phi_per_shot=base.phi_per_shot)
     m.values.update(fit0.values)
     m.cand_fixed = {k2: v for k2, v in loc.items() if k2 == "shot"}
     for p in cand.location:
