@@ -170,15 +170,9 @@ class JointModel:
             free_shared = [n for n in free_shared if not n.startswith(per_shot)]
         self.free = list(free_shared)
         for i, s in enumerate(shots):
-            if self.alpha_per_shot:
-                for name, use in (("alpha_y", s.translates),
-                                  ("alpha_theta", s.spins and s.theta_measured)):
-                    self.values[f"{name}[{i}]"] = float(s.start.get(name, self.values[name]))
-                    if use:
-                        self.free.append(f"{name}[{i}]")
-            if self.phi_per_shot:
-                for name, use in (("phi_y", s.translates),
-                                  ("phi_theta", s.spins and s.theta_measured)):
+            for law in (per_shot if self.alpha_per_shot else ()):
+                for name, use in ((f"{law}_y", s.translates),
+                                  (f"{law}_theta", s.spins and s.theta_measured)):
                     self.values[f"{name}[{i}]"] = float(s.start.get(name, self.values[name]))
                     if use:
                         self.free.append(f"{name}[{i}]")
