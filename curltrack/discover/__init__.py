@@ -240,6 +240,12 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
                                   *spread_warnings, *noise_warnings])
 
 
+#: the per-shot exponents are taken when they lower the BIC by more than this ("very
+#: strong" evidence) and two of them differ by over SPREAD_Z sigma of their difference
+SPREAD_BIC = 10.0
+SPREAD_Z = 3.0
+
+
 def _friction_spread(shots, base, fit0, rig, names):
     """The session's baseline with each shot's own friction exponents where they differ.
 
@@ -247,8 +253,9 @@ def _friction_spread(shots, base, fit0, rig, names):
     1.77 to 1.90 and lambda_theta from 1.20 to 1.50 from shot to shot.  With phi shared
     (alpha per shot), clean sessions whose phi_y spread by +-0.03 to +-0.1 had a patch or
     a pick named in 5 of 8 (an independent simulator).  The baseline with ``phi_y[i]``,
-    ``phi_theta[i]`` per shot is fitted too and taken when its BIC is lower; a warning
-    gives the exponents.  Returns (model, fit, warnings)."""
+    ``phi_theta[i]`` per shot is fitted too and taken when its BIC is lower by
+    :data:`SPREAD_BIC` and its exponents differ (:data:`SPREAD_Z`); a warning gives them.
+    Returns (model, fit, warnings)."""
     if len(shots) < 2 or base.baseline != "paper":
         return base, fit0, []
     alt = JointModel(shots, base.baseline, rig=rig, phi_per_shot=True)
@@ -256,11 +263,22 @@ def _friction_spread(shots, base, fit0, rig, names):
         fit1 = alt.fit(max_nfev=80, name=names)
     except CurltrackError:
         return base, fit0, []
-    if not fit1.bic < fit0.bic:
+    keys = {c: sorted((k for k in fit1.free if k.startswith(f"phi_{c}[")),
+                      key=lambda k: int(k[k.index("[") + 1:-1])) for c in ("y", "theta")}
+
+    def differ(ks):   # the two furthest apart, beyond 3 sigma of their difference
+        if len(ks) < 2:
+            return False
+        lo = min(ks, key=lambda k: fit1.values[k])
+        hi = max(ks, key=lambda k: fit1.values[k])
+        return fit1.values[hi] - fit1.values[lo] > SPREAD_Z * np.hypot(fit1.err(hi),
+                                                                       fit1.err(lo))
+
+    # (strong evidence, and exponents that differ: a shared fit that merely stopped
+    # short of its minimum gave a "better" per-shot fit at BIC 4-10 with equal phis)
+    if not (fit1.bic < fit0.bic - SPREAD_BIC and any(differ(k) for k in keys.values())):
         return base, fit0, []
-    per = {c: [f"{fit1.values[k]:.3g}" for k in sorted(
-        (k for k in fit1.free if k.startswith(f"phi_{c}[")),
-        key=lambda k: int(k[k.index("[") + 1:-1]))] for c in ("y", "theta")}
+    per = {c: [f"{fit1.values[k]:.3g}" for k in ks] for c, ks in keys.items()}
     listed = "; ".join(f"phi_{c} {', '.join(v)}" for c, v in per.items() if v)
     return alt, fit1, [
         f"{names}: the shots' friction laws differ ({listed}; one shared phi per channel "
