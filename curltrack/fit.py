@@ -311,8 +311,16 @@ def fit_translation(t, x, y, t_stop, fixed_stop=False, free_lambda=False, sigma=
     tt, xx, yy = t[use], x[use], y[use]
     _check_points(len(tt), 7 + free_lambda - fixed_stop, "translation", path)
     s_x, s_y = (_row_weights(s, t)[use] for s in (sigma if sigma is not None else (None, None)))
-    y_end = float(np.median(yy[-3:]))
-    x_end = float(np.median(xx[-3:]))
+    # (the series may be measured from any origin: the start is the rock at t = 0 - a
+    # quadratic through the first second, extrapolated - not (0, 0); from (0, 0) a shot
+    # 30 m off and turned 9 deg converged to v0 = -0.0006 m/s and was refused)
+    first = tt <= tt[0] + 1.0
+    first[:5] = True
+    deg = min(2, int(first.sum()) - 1)
+    x_o, y_o = ((float(np.polyval(np.polyfit(tt[first], q[first], deg), 0.0)) if deg >= 1
+                 else float(q[0])) for q in (xx, yy))
+    y_end = float(np.median(yy[-3:])) - y_o
+    x_end = float(np.median(xx[-3:])) - x_o
     start = dict(start or {})
     p = lmfit.Parameters()
     p.add("y_F", value=start.get("y_F", y_end if abs(y_end) > 1e-6 else 1e-3))
@@ -323,8 +331,8 @@ def fit_translation(t, x, y, t_stop, fixed_stop=False, free_lambda=False, sigma=
     if free_lambda:
         to_lmfit(p, LAMBDA, "lambda_x", start.get("lambda_x", start.get("lambda_y", 1.9)))
     to_lmfit(p, DESKEW, value=start.get("psi", 0.0))
-    p.add("x0", value=start.get("x0", 0.0))
-    p.add("y0", value=start.get("y0", 0.0))
+    p.add("x0", value=start.get("x0", x_o))
+    p.add("y0", value=start.get("y0", y_o))
 
     def resid(pp):
         mx, my = _xy_model(pp, tt)

@@ -185,8 +185,12 @@ def _check_theta(d, fail, warnings) -> None:
             turn = rate * (t[k + 1] - t[k])
             jump = th[k + 1] - th[k]
             near_2pi[k] = abs(jump - turn) > abs(jump - np.sign(jump) * 2 * np.pi - turn)
-    # (rows <= 0.5 s apart: a real turn of ~2 pi between rows would be > 10 rad/s)
-    if np.median(np.diff(t)) <= 0.5 and near_2pi.any() and np.abs(np.diff(np.unwrap(th))).max() < 1.0:
+    # (rows <= 0.5 s apart: a real turn of ~2 pi between rows would be > 10 rad/s;
+    # unwrapped, consecutive rows - not those across a gap - step by less than 1 rad)
+    dt = np.diff(t)
+    regular = dt <= 1.5 * np.median(dt)
+    if np.median(dt) <= 0.5 and near_2pi.any() and \
+            np.abs(np.diff(np.unwrap(th))[regular]).max(initial=0.0) < 1.0:
         k = int(np.flatnonzero(near_2pi)[0]) + 1
         row = int(d.index[k]) + 2  # the file's line number (header is line 1)
         fail("theta", f"theta jumps by {th[k] - th[k - 1]:+.3f} rad at row {row}: it looks "
@@ -210,7 +214,9 @@ def _edge_rates(t, th, k, span_s: float = 0.5):
     for sel in ((t >= t[k] - span_s) & (np.arange(t.size) <= k),
                 (t <= t[k + 1] + span_s) & (np.arange(t.size) >= k + 1)):
         if sel.sum() >= 2 and np.ptp(t[sel]) > 0:
-            rates.append(float(np.polyfit(t[sel], th[sel], 1)[0]))
+            # (unwrapped within the side: a series wrapped to one turn must not predict
+            # its own wraps)
+            rates.append(float(np.polyfit(t[sel], np.unwrap(th[sel]), 1)[0]))
     return float(np.mean(rates)) if rates else None
 
 
