@@ -60,6 +60,13 @@ ORIGIN_WARN_M = 1e-3
 MIN_SIGMA_DOF = 30
 
 
+
+#: a frame is refused when its markers' layout-scale agreement (1, 0.6 at 3 robust
+#: sigma) times their contrast against the video's typical (at most 1) is under this:
+#: the first defocused frame of the wrong-cell test (seed 2197322920: -4.3 sigma, a
+#: third of the contrast: 0.11) was 5.5 mm off at sigma 1.0 mm, ok = 1
+DOUBTFUL_MARKERS = 0.15
+
 def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, sys_theta,
                     origin_sigma, theta0_sigma) -> dict:
     """Per-row sigma_xy / sigma_theta whose random part is scaled on the video itself.
@@ -551,12 +558,23 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                                  "or marker fit)")
         ok &= ~unsure
         shot = dict(shot, **{k: np.where(unsure, np.nan, shot[k]) for k in ("x", "y", "theta")})
+    contrast = np.array([r.contrast for r in records])
     med = np.median(scale[ok])
     spread = robust_sigma(scale[ok], centre=med) or 1e-9
-    contrast = np.array([r.contrast for r in records])
+    # a frame whose markers are both off the video's layout scale and faint (against
+    # the video's own contrast) is doubtful beyond what its sigma says
+    layout_term = np.exp(-0.5 * ((scale - med) / (3 * max(spread, 1e-4))) ** 2)
+    typical_contrast = float(np.nanmedian(contrast[ok])) if ok.any() else np.nan
+    doubt = layout_term * np.clip(contrast / typical_contrast, 0.0, 1.0)
+    doubtful = ok & (doubt < DOUBTFUL_MARKERS)
+    for i in np.flatnonzero(doubtful):
+        records[i].status = (f"uncertain: markers off the video's layout scale "
+                             f"({(scale[i] - med) / spread:+.1f} robust sigma) and faint "
+                             f"(contrast {contrast[i]:.0f}, the video's {typical_contrast:.0f})")
+    ok &= ~doubtful
+    shot = dict(shot, **{k: np.where(doubtful, np.nan, shot[k]) for k in ("x", "y", "theta")})
     # 1 for a frame whose marker layout agrees with the video's (3 robust sigmas -> 0.6)
-    quality = (np.exp(-0.5 * ((scale - med) / (3 * max(spread, 1e-4))) ** 2)
-               * np.clip(contrast / 40.0, 0.0, 1.0))
+    quality = layout_term * np.clip(contrast / 40.0, 0.0, 1.0)
     fields = any(r.field is not None for r in records)
     data = pd.DataFrame({
         "frame": frame, **({"field": [r.field for r in records]} if fields else {}),
