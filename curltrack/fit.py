@@ -40,6 +40,7 @@ import pandas as pd
 from uncertainties import UFloat
 
 from . import __version__
+from ._stats import value_at_zero
 from .errors import FitError, SeriesError
 from .physics import closed_form as cf
 from .fitting import solve
@@ -314,11 +315,7 @@ def fit_translation(t, x, y, t_stop, fixed_stop=False, free_lambda=False, sigma=
     # (the series may be measured from any origin: the start is the rock at t = 0 - a
     # quadratic through the first second, extrapolated - not (0, 0); from (0, 0) a shot
     # 30 m off and turned 9 deg converged to v0 = -0.0006 m/s and was refused)
-    first = tt <= tt[0] + 1.0
-    first[:5] = True
-    deg = min(2, int(first.sum()) - 1)
-    x_o, y_o = ((float(np.polyval(np.polyfit(tt[first], q[first], deg), 0.0)) if deg >= 1
-                 else float(q[0])) for q in (xx, yy))
+    x_o, y_o = value_at_zero(tt, xx), value_at_zero(tt, yy)
     y_end = float(np.median(yy[-3:])) - y_o
     x_end = float(np.median(xx[-3:])) - x_o
     start = dict(start or {})

@@ -490,12 +490,11 @@ def _file_stamp(path) -> tuple[int, int]:
     return st.st_size, st.st_mtime_ns
 
 
-def _av_last_time(path, first: float, full: bool = False) -> float | None:
-    """The time (s) FFmpeg gives the video's last frame: decoded from a seek to a
-    keyframe within 2 s of the container's end (one GOP), or - ``full``, where that finds
-    no frame (a stream FFmpeg cannot seek in, such as MPEG-TS with one keyframe) - by
-    decoding every frame, streamed.  None without PyAV or when nothing decodes.
-    ``first`` is the first frame's time (s)."""
+def _av_last_time(path, first: float) -> float | None:
+    """The time (s) FFmpeg gives the video's last frame, decoded from a seek to a
+    keyframe within 2 s of the container's end (one GOP); None without PyAV, or when
+    nothing decodes there (a stream FFmpeg cannot seek in, such as MPEG-TS with one
+    keyframe).  ``first`` is the first frame's time (s)."""
     try:
         import av
     except ImportError:
@@ -514,11 +513,6 @@ def _av_last_time(path, first: float, full: bool = False) -> float | None:
                             last = float(fr.time)
                 except av.FFmpegError:
                     last = None
-        if last is None and full:
-            with av.open(str(path)) as c:
-                for fr in c.decode(main_stream(c)):
-                    if fr.time is not None:
-                        last = float(fr.time)
     except Exception:  # noqa: BLE001 - any FFmpeg failure: the caller's checks report it
         return None
     return last
@@ -531,8 +525,8 @@ MAX_FRAME_COUNT = 24 * 3600 * 240
 
 @functools.lru_cache(maxsize=32)
 def _av_frame_count(path: str, size: int, mtime_ns: int) -> int:
-    """Frames FFmpeg decodes from the file's first video stream (streamed, once per file
-    version); 0 when it decodes none or cannot open it."""
+    """Frames FFmpeg decodes from the file's :func:`main_stream` (streamed, once per
+    file version); 0 when it decodes none or cannot open it."""
     try:
         import av
     except ImportError:
@@ -663,10 +657,9 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
                 ok, img = cap.read()
             if not ok or img is None:
                 # OpenCV cannot seek in every container (MPEG-TS: AVCHD camcorders,
-                # broadcast recorders): FFmpeg's last frame says whether the frames are
-                # there
-                last = _av_last_time(path, first, full=True)
-                if last is None or abs((last - first) * fps + 1 - n) > 1.5:
+                # broadcast recorders): the frames FFmpeg decodes say whether they are
+                # all there
+                if abs(_av_frame_count(str(path), *_file_stamp(path)) - n) > 1:
                     raise VideoError(f"video is truncated: the container announces {n} "
                                      "frames but the last one cannot be decoded", path=path,
                                      where=f"frame {n - 1}")

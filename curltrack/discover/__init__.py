@@ -50,7 +50,7 @@ import numpy as np
 from ..errors import CurltrackError, InputError
 from . import scoring
 from .candidates import build_candidates, untested
-from .model import JointModel
+from .model import JointModel, _shot_of
 from .results import DiscoveryReport, Finding
 from .residuals import structure_tests
 from .search import (NONLINEAR_MARGIN, best_extension, folds_shot,
@@ -263,8 +263,8 @@ def _friction_spread(shots, base, fit0, rig, names):
         fit1 = alt.fit(max_nfev=80, name=names)
     except CurltrackError:
         return base, fit0, []
-    keys = {c: sorted((k for k in fit1.free if k.startswith(f"phi_{c}[")),
-                      key=lambda k: int(k[k.index("[") + 1:-1])) for c in ("y", "theta")}
+    keys = {c: sorted((k for k in fit1.free if k.startswith(f"phi_{c}[")), key=_shot_of)
+            for c in ("y", "theta")}
 
     def differ(ks):   # the two furthest apart, beyond 3 sigma of their difference
         if len(ks) < 2:
@@ -400,9 +400,10 @@ def drop_isolated_outliers(model: JointModel, fit) -> list[str]:
         if c in ("x", "y"):
             bad = bad | {r for r in glitched.get(j, ()) if s.use[c][r]}
         if bad:
+            used = int(s.use[c].sum())
             s.use[c] = s.use[c].copy()
             s.use[c][sorted(bad)] = False
-            counts.setdefault(j, []).append(f"{c} {len(bad)} of {len(bad) + int(s.use[c].sum())}")
+            counts.setdefault(j, []).append(f"{c} {len(bad)} of {used}")
     return [f"{model.shots[j].name}: rows left out of every fit as isolated outliers (> "
             f"{OUTLIER_K:g} sigma from their neighbours) or glitches: {', '.join(parts)}"
             for j, parts in counts.items()] + notes

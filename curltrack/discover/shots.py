@@ -188,6 +188,7 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
 #: (:mod:`curltrack.physics.params`)
 RECENTRE_BEYOND = 0.5
 #: the first this many seconds of rows (at least 5) place the origin
+#: (:func:`curltrack._stats.value_at_zero`)
 RECENTRE_WINDOW_S = 1.0
 
 
@@ -201,21 +202,11 @@ def _recentre(t, obs, name, warnings):
     t = 0 (a quadratic through the first second, extrapolated) lies beyond
     :data:`RECENTRE_BEYOND` of zero, it is taken off; the report adds it back to the
     offsets."""
-    origin = []
-    for c in COORDS:
-        v = obs[c]
-        ok = np.isfinite(v)
-        tk, vk = t[ok], v[ok]
-        if tk.size == 0:
-            origin.append(0.0)
-            continue
-        sel = tk <= tk[0] + RECENTRE_WINDOW_S
-        sel[:5] = True
-        deg = min(2, int(sel.sum()) - 1)
-        o = float(np.polyval(np.polyfit(tk[sel], vk[sel], deg), 0.0)) if deg >= 1 else \
-            float(vk[0])
-        origin.append(o)
-    x0, y0, th0 = origin
+    from .._stats import value_at_zero
+
+    finite = {c: np.isfinite(obs[c]) for c in COORDS}
+    x0, y0, th0 = (value_at_zero(t[finite[c]], obs[c][finite[c]], RECENTRE_WINDOW_S)
+                   if finite[c].any() else 0.0 for c in COORDS)
     if max(abs(x0), abs(y0)) <= RECENTRE_BEYOND:
         x0 = y0 = 0.0
     if abs(th0) <= RECENTRE_BEYOND:

@@ -412,14 +412,13 @@ def isolated_steps(r, k: float = OUTLIER_K) -> list[tuple[int, int]]:
     A rock's position cannot jump: a kick changes its velocity, and every effect of the
     physics moves the residuals smoothly, so a jump between two rows (an isolated
     outlier of the first differences, :func:`isolated_outliers`) is the instrument's.
-    Isolated: at half the threshold at most two other jumps (and 1 % of the rows), and
-    every jump returns.
     Where one returns - a jump and one of the other sign cancelling to within
     :data:`STEP_RETURN` - the rows between are a glitch (an instrument that lost its fix
     for 0.5-3 s and read 3-15 cm off: four in seven clean shots with one or two such
-    glitches on white noise were ``unexplained``).  With more than
-    :data:`MAX_GLITCH_STEPS` jumps the errors are the instrument's way of measuring, not
-    glitches: nothing is returned.
+    glitches on white noise were ``unexplained``).  Only isolated ones: with more than
+    :data:`MAX_GLITCH_STEPS` jumps, more than two others (and 1 % of the rows) at half
+    the threshold, or a jump that does not return, the errors are the instrument's way
+    of measuring, not glitches, and nothing is returned.
 
     Parameters
     ----------
@@ -427,6 +426,7 @@ def isolated_steps(r, k: float = OUTLIER_K) -> list[tuple[int, int]]:
         Residuals of one coordinate in units of the rows' noise sigma, in time order.
     k : float
         Threshold of a jump, in sigma of the differences' noise.
+
     Returns
     -------
     list of (int, int)
@@ -436,14 +436,14 @@ def isolated_steps(r, k: float = OUTLIER_K) -> list[tuple[int, int]]:
     if r.size < 8:
         return []
     d = np.diff(r)
-    jumps = np.flatnonzero(isolated_outliers(d / np.sqrt(2.0), k))
+    z = d / np.sqrt(2.0)   # (in sigma of a difference of two rows)
+    jumps = np.flatnonzero(isolated_outliers(z, k))
     if not 2 <= jumps.size <= MAX_GLITCH_STEPS:
         return []
     # isolated: the rest of the series does not jump too - at half the threshold no
     # more than two others and 1 % of the rows (white noise: ~0.3 % of them; an
     # instrument whose every fix sits on a step jumps every few tenths of a second)
-    if int(isolated_outliers(d / np.sqrt(2.0), 0.5 * k).sum()) > \
-            jumps.size + 2 + 0.01 * r.size:
+    if int(isolated_outliers(z, 0.5 * k).sum()) > jumps.size + 2 + 0.01 * r.size:
         return []
     out, used = [], set()
     for a, b in zip(jumps[:-1], jumps[1:]):

@@ -67,6 +67,15 @@ MIN_SIGMA_DOF = 30
 #: third of the contrast: 0.11) was 5.5 mm off at sigma 1.0 mm, ok = 1
 DOUBTFUL_MARKERS = 0.15
 
+
+def _refuse(records, ok, shot, mask, why):
+    """Frames ``mask`` refused after the shot frame is built: each record's status
+    ``why(i)``, and (ok, shot) without them (their x, y, theta NaN)."""
+    for i in np.flatnonzero(mask):
+        records[i].status = why(i)
+    return ok & ~mask, {k: (np.where(mask, np.nan, v) if k in ("x", "y", "theta") else v)
+                        for k, v in shot.items()}
+
 def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, sys_theta,
                     origin_sigma, theta0_sigma) -> dict:
     """Per-row sigma_xy / sigma_theta whose random part is scaled on the video itself.
@@ -552,12 +561,9 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         typical = float(np.median(sigma_own[sure & ~clicked] if (sure & ~clicked).any()
                                   else sigma_own[sure]))
         unsure = sure & ~clicked & (sigma_own > st.sigma_outlier_factor * typical)
-        for i in np.flatnonzero(unsure):
-            records[i].status = (f"uncertain: sigma_xy over {st.sigma_outlier_factor:g}x the "
-                                 f"video's typical {1e3 * typical:.1f} mm (a doubtful grid "
-                                 "or marker fit)")
-        ok &= ~unsure
-        shot = dict(shot, **{k: np.where(unsure, np.nan, shot[k]) for k in ("x", "y", "theta")})
+        ok, shot = _refuse(records, ok, shot, unsure, lambda i: (
+            f"uncertain: sigma_xy over {st.sigma_outlier_factor:g}x the video's typical "
+            f"{1e3 * typical:.1f} mm (a doubtful grid or marker fit)"))
     contrast = np.array([r.contrast for r in records])
     med = np.median(scale[ok])
     spread = robust_sigma(scale[ok], centre=med) or 1e-9
@@ -566,13 +572,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     layout_term = np.exp(-0.5 * ((scale - med) / (3 * max(spread, 1e-4))) ** 2)
     typical_contrast = float(np.nanmedian(contrast[ok])) if ok.any() else np.nan
     doubt = layout_term * np.clip(contrast / typical_contrast, 0.0, 1.0)
-    doubtful = ok & (doubt < DOUBTFUL_MARKERS)
-    for i in np.flatnonzero(doubtful):
-        records[i].status = (f"uncertain: markers off the video's layout scale "
-                             f"({(scale[i] - med) / spread:+.1f} robust sigma) and faint "
-                             f"(contrast {contrast[i]:.0f}, the video's {typical_contrast:.0f})")
-    ok &= ~doubtful
-    shot = dict(shot, **{k: np.where(doubtful, np.nan, shot[k]) for k in ("x", "y", "theta")})
+    ok, shot = _refuse(records, ok, shot, ok & (doubt < DOUBTFUL_MARKERS), lambda i: (
+        f"uncertain: markers off the video's layout scale ({(scale[i] - med) / spread:+.1f} "
+        f"robust sigma) and faint (contrast {contrast[i]:.0f}, the video's "
+        f"{typical_contrast:.0f})"))
     # 1 for a frame whose marker layout agrees with the video's (3 robust sigmas -> 0.6)
     quality = layout_term * np.clip(contrast / 40.0, 0.0, 1.0)
     fields = any(r.field is not None for r in records)
