@@ -292,6 +292,11 @@ FIELD_SLOPE = 0.15
 #: phase correlation's peak (0-1) below which a frame pair says nothing (a featureless
 #: or blank frame: its shift is noise); textured frames of the sweep's clips gave 0.85-1
 FIELD_MIN_RESPONSE = 0.5
+#: the vertical offset (field lines, phase correlation's sign) of a frame's bottom field
+#: from its top one when both are one exposure: -0.5 (half a line lower) for smooth
+#: content, towards 0 where thin threads alias (measured -0.37 to -0.53 on textured
+#: pans); 0.1 either side for the measurement's own noise
+FIELD_OFFSET_LINES = (-0.6, 0.1)
 
 
 @dataclass(frozen=True)
@@ -411,14 +416,20 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
                     win = cv2.createHanningWindow((cw, ch), cv2.CV_32F)
                     if colour is not None:
                         win_c = cv2.createHanningWindow(colour[0].shape[::-1], cv2.CV_32F)
+                inner = cv2.phaseCorrelate(top, bottom, win)
                 if prev is not None:
                     # the frame's motion top -> next top; where the lattice aliases that
                     # (a weak peak), as two shorter steps through the bottom field
-                    d1, r1 = cv2.phaseCorrelate(prev[0], prev[1], win)
+                    d1, r1 = prev[3]
                     d, r = cv2.phaseCorrelate(prev[0], top, win)
                     if r < FIELD_MIN_RESPONSE:
                         d2, r = cv2.phaseCorrelate(prev[1], top, win)
                         d = (d1[0] + d2[0], d1[1] + d2[1])
+                    elif inner[1] >= FIELD_MIN_RESPONSE:
+                        # the two frames' field shifts, averaged: the noise of the top
+                        # field they share with the motion cancels (it enters one shift
+                        # with the motion's sign and the other against it)
+                        d1 = (0.5 * (d1[0] + inner[0][0]), 0.5 * (d1[1] + inner[0][1]))
                     # the colour's field shift, and its own motion to the next frame
                     dc = dcm = (np.nan, np.nan)
                     if prev[2] is not None and colour is not None:
@@ -428,7 +439,7 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
                             dc = dcm = (np.nan, np.nan)
                     if min(r1, r) >= FIELD_MIN_RESPONSE:
                         rows.append((*d1, *d, *dc, *dcm))
-                prev = (top, bottom, colour)
+                prev = (top, bottom, colour, inner)
     except Exception:  # noqa: BLE001 - any FFmpeg failure: the caller's checks report it
         return None
     p = np.array(rows).reshape(-1, 8)
@@ -466,23 +477,45 @@ def _colour_rows(fr, r0: int, c0: int, ch: int, cw: int):
 
 def _shift_slope(motion, shift) -> tuple[float, float]:
     """(slope, its standard error) of ``shift`` (n, 2) on ``motion`` (n, 2) - the same
-    slope on both axes, a free intercept on the vertical one - by least squares, then
-    again without 4-MAD outliers."""
+    slope on both axes, an intercept on the vertical one within
+    :data:`FIELD_OFFSET_LINES` - by least squares, then again without 4-MAD outliers.
+
+    The intercept is the fields' fixed offset, which one exposure per frame gives alone;
+    its bounds are what tell the two readings apart under a steady vertical pan, where
+    slope and intercept trade off.  So the error is the profile's: the slope over the
+    square root of how much worse (in the residuals' variance) the best fit with no
+    slope is - infinite when it is as good - and among equal fits the smallest slope is
+    reported.
+    """
+    from scipy.optimize import lsq_linear
+
     n = len(motion)
     y = np.concatenate([shift[:, 0], shift[:, 1]])
     X = np.zeros((2 * n, 2))
     X[:, 0] = np.concatenate([motion[:, 0], motion[:, 1]])
     X[n:, 1] = 1.0
+    lo, hi = FIELD_OFFSET_LINES
+    tie = np.array([[1e-3, 0.0]])   # a slight pull to no slope: the smallest among equals
+
+    def best(rows):
+        return lsq_linear(np.vstack([X[rows], tie]), np.append(y[rows], 0.0),
+                          bounds=([-np.inf, lo], [np.inf, hi])).x
+
     keep = np.ones(y.size, bool)
     for _ in range(2):
-        beta = np.linalg.lstsq(X[keep], y[keep], rcond=None)[0]
+        beta = best(keep)
         res = y - X @ beta
         mad = 1.4826 * np.median(np.abs(res[keep])) + 1e-3
         keep = np.abs(res) <= 4.0 * mad
-    dof = max(int(keep.sum()) - 2, 1)
-    s2 = float(np.sum(res[keep] ** 2)) / dof
-    cov = s2 * np.linalg.pinv(X[keep].T @ X[keep])
-    return float(beta[0]), float(np.sqrt(max(cov[0, 0], 0.0)))
+    beta = best(keep)
+    ss = float(np.sum((y - X @ beta)[keep] ** 2))
+    vertical = keep & (X[:, 1] > 0)
+    offset = np.clip(np.mean(y[vertical]), lo, hi) if vertical.any() else 0.0
+    ss0 = float(np.sum((y - X[:, 1] * offset)[keep] ** 2))
+    s2 = max(ss / max(int(keep.sum()) - 2, 1), 1e-12)
+    z2 = max(ss0 - ss, 0.0) / s2
+    slope = float(beta[0])
+    return slope, (abs(slope) / np.sqrt(z2) if z2 > 0 else float(np.inf))
 
 
 def _file_stamp(path) -> tuple[int, int]:

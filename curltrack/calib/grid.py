@@ -406,6 +406,9 @@ COVERAGE_BAND_PX = 2.0
 COVERAGE_BIN = 0.05
 COVERAGE_RATIO_MIN = 0.6
 LENS_RADIUS_MIN = 0.5
+#: pairs of thread families tried after the strongest when its fit fails (a square
+#: lattice's diagonals through the crossings can be as periodic as its threads)
+LATTICE_ALTERNATIVES = 2
 
 
 def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
@@ -451,30 +454,44 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
     xs, wt = candidate_pixels(resp, mask, max_n=CALIBRATION_PIXELS)
     if len(xs) < 200:
         raise TrackingError("no grid found: almost no thread-like pixels in the frame")
-    A = initial_lattice(resp, xs, wt, c, rig.spacing_x_m / rig.spacing_y_m)
-    if A is None:
+    guesses = initial_lattice(resp, xs, wt, c, rig.spacing_x_m / rig.spacing_y_m,
+                              alternatives=LATTICE_ALTERNATIVES)
+    if not guesses:
         raise TrackingError("no grid found: no two periodic thread families in the frame")
-    Hc = np.array([[A[0, 0] * f, A[0, 1] * f, A[0, 2]], [A[1, 0] * f, A[1, 1] * f, A[1, 2]],
-                   [0.0, 0.0, 1.0]])
-    # the wide-angle schedule first; the mild one (as before 2026-11-24) where it fails
-    for i, schedule in enumerate(LENS_SCHEDULES):
+    first = None
+    for A in guesses:   # the strongest pair of families first; the next where it fails
+        Hc = np.array([[A[0, 0] * f, A[0, 1] * f, A[0, 2]],
+                       [A[1, 0] * f, A[1, 1] * f, A[1, 2]], [0.0, 0.0, 1.0]])
         try:
-            Hc_i, K_i, dist, info, lens_radius = _fit_lens(xs, wt, Hc, K, w, h, rig,
-                                                           *schedule)
+            Hc, K_fit, dist, info, lens_radius = _fit_lens_schedules(xs, wt, Hc, K, w, h, rig)
+            # (the threads' colours, origin and residual from the checked lens only)
+            sel = (slice(None) if lens_radius is None
+                   else np.hypot(*(xs - K_fit[:2, 2]).T) <= lens_radius)
+            cal = _to_metric(img, rig, model, contrast, xs[sel], wt[sel], Hc, K_fit, dist,
+                             info)
             break
         except TrackingError as exc:
-            if i == 0:
-                first = exc
+            first = first or exc
     else:
         raise first
-    Hc, K = Hc_i, K_i
-    cal = _to_metric(img, rig, model, contrast, xs, wt, Hc, K, dist, info)
     if lens_radius is not None:
         cal.lens_radius_px = float(lens_radius)
         cal.notes.append(f"wide-angle lens (k1 = {dist[0]:.3f}, k2 = {dist[1]:.3f}): the "
                          f"threads confirm the lens model only within {lens_radius:.0f} px "
                          f"of the principal point; the rock is not measured beyond")
     return cal
+
+
+def _fit_lens_schedules(xs, wt, Hc, K, w, h, rig):
+    """:func:`_fit_lens` with the wide-angle schedule, then the mild one (as before
+    2026-11-24) where it fails; the first schedule's error when both do."""
+    first = None
+    for schedule in LENS_SCHEDULES:
+        try:
+            return _fit_lens(xs, wt, Hc, K, w, h, rig, *schedule)
+        except TrackingError as exc:
+            first = first or exc
+    raise first
 
 
 def _fit_lens(xs, wt, Hc, K, w, h, rig, growing, free, free_from):
@@ -503,10 +520,19 @@ def _fit_lens(xs, wt, Hc, K, w, h, rig, growing, free, free_from):
             break
         K, dist, radii = K0, (0.0, 0.0), radii0  # the lens bent to the wrong lattice: regrow
     Hc, K, dist, info = fit_lattice(xs, wt, Hc, K, dist, free=LENS_PARAMS,
-                                    radii=(None,), band_px=2.5, iterations=4)
+                                    radii=(None,), band_px=2.5, iterations=12)
     if not info or info["lines_a"] < 3 or info["lines_b"] < 3:
         raise TrackingError("no grid found: fewer than 3 threads in a family could be fitted")
     lens_radius = checked_lens_radius(xs, wt, Hc, K, dist, w, h)
+    if lens_radius is not None:
+        # the threads beyond the checked radius (squeezed together, or wrongly indexed
+        # there) must not bend the fit of those within it: refit on those
+        inner = np.hypot(*(xs - K[:2, 2]).T) <= lens_radius
+        fit = fit_lattice(xs[inner], wt[inner], Hc, K, dist, free=LENS_PARAMS,
+                          radii=(None,), band_px=2.5, iterations=12)
+        if fit[3] and min(fit[3]["lines_a"], fit[3]["lines_b"]) >= 3:
+            Hc, K, dist, info = fit
+            lens_radius = checked_lens_radius(xs, wt, Hc, K, dist, w, h)
     if lens_radius is not None and lens_radius < LENS_RADIUS_MIN * half_diag:
         raise TrackingError(
             f"no grid found: the lens could not be calibrated - the fitted radial "

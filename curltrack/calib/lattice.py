@@ -110,7 +110,7 @@ def _refine_wavevector(xs, w, k, n_steps: int = 5):
     return k, float(np.angle(z) / (2 * np.pi))
 
 
-def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
+def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0, alternatives: int = 0):
     """Affine first guess of the lattice from the response's spectrum.
 
     Parameters
@@ -124,12 +124,16 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
     cell_ratio : float
         spacing_x / spacing_y of the rig: the two families' periods (px) must have about
         this ratio (either way round).
+    alternatives : int
+        With n > 0, a list of up to n + 1 guesses, best first: the next pairs of
+        families by strength (a square lattice's diagonals, a stack of crossings, can
+        score as high as its threads; the caller tries the next when a fit fails).
 
     Returns
     -------
     A : (2, 3) float or None
         Rows map ``(x - cx, y - cy, 1)`` to cells ``a``, ``b``; None if fewer than two
-        periodic families were found.
+        periodic families were found (a list, possibly empty, with ``alternatives``).
     """
     import cv2
 
@@ -194,7 +198,7 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
             found.append((perp, res[0], res[1]))
     # The best pair: nearly perpendicular (a rectangular lattice seen from above) with the
     # period ratio of the rig's cell (perspective and tilt change it by a few per cent).
-    best, pair = -np.inf, None
+    pairs = []
     for i, c1 in enumerate(found):
         for c2 in found[i + 1:]:
             ang = np.degrees(np.arccos(min(abs(c1[0] @ c2[0]), 1.0)))
@@ -202,10 +206,17 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
             if ang < 60.0 or not any(abs(np.log(ratio / r)) < 0.2 for r in
                                      (cell_ratio, 1.0 / cell_ratio)):
                 continue
-            if c1[2] + c2[2] > best:
-                best, pair = c1[2] + c2[2], (c1, c2)
-    if pair is None:
-        return None
+            pairs.append((c1[2] + c2[2], len(pairs), (c1, c2)))
+    pairs = [p for _, _, p in sorted(pairs, key=lambda q: (-q[0], q[1]))]
+    guesses = [_pair_lattice(pair, rel[near], w[near], cell_ratio, min_period, max_period)
+               for pair in pairs[:alternatives + 1]]
+    if alternatives:
+        return guesses
+    return guesses[0] if guesses else None
+
+
+def _pair_lattice(pair, rel, w, cell_ratio, min_period, max_period):
+    """The affine lattice (2, 3) of a pair of families (normal, period, score)."""
     # A family of faint threads (a weak colour, thin threads) can give its stack's
     # period a few px off: the rig's cell ratio, within what perspective and tilt change
     # (a few %), says where its period lies from the stronger family's; look there.
@@ -215,13 +226,12 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0):
     if abs(np.log(ratio / target)) > PERIOD_RATIO_TOL:
         lag = strong[1] * target
         window = (lag * (1 - PERIOD_RATIO_TOL), lag * (1 + PERIOD_RATIO_TOL))
-        res = _fundamental_period(rel[near], w[near], weak[0], min_period, max_period, window)
+        res = _fundamental_period(rel, w, weak[0], min_period, max_period, window)
         if res is not None:
             weak = (weak[0], res[0], weak[2])
-    pair = (strong, weak)
     rows = []
-    for normal, period, _ in pair:
-        k, s = _refine_wavevector(rel[near], w[near], normal / period)
+    for normal, period, _ in (strong, weak):
+        k, s = _refine_wavevector(rel, w, normal / period)
         rows.append([k[0], k[1], -s])
     return np.array(rows)
 
@@ -259,6 +269,7 @@ def periods_px(Hc, f):
 
 LENS_PARAMS = ("k1", "k2", "cx", "cy")
 STAGE_TOL_PX = 0.1  # a region-growing stage ends once a step moves no pixel this far
+FINAL_TOL_PX = 0.002  # the fit on every pixel ends once a step moves none this far
 #: A lens parameter is freed in a region-growing stage only once the region's radius
 #: spans this many thread periods (besides ``free_from``'s fraction of the view): the
 #: wide-angle schedule's fractions, validated on action cameras at 960x540 (periods of
@@ -438,8 +449,11 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
                 if stage == len(radii) - 1 and it == iterations - 1:
                     break  # (the pixels' positions are not needed after the last step)
                 q_s = _normalised(xs_s, K, lens)
-            if radius is not None and np.abs(J @ step).max() < STAGE_TOL_PX:
+            moved = np.abs(J @ step).max()
+            if radius is not None and moved < STAGE_TOL_PX:
                 break  # a growing stage has only to land in the basin: the next refines
+            if radius is None and moved < FINAL_TOL_PX:
+                break
         if stage_free:  # the lens moved: every pixel's normalised position
             q = q_s if radius is None else _normalised(xs, K, lens)
     info = {}

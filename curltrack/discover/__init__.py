@@ -163,8 +163,8 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     before = structure_tests(segments_of(base, fit0, noise0))
     f_time = folds_time(base)
     f_shot = folds_shot(base) if len(shots) > 1 else None
-    h0 = heldout(fit0, f_time, base)
-    h0_loso = heldout(fit0, f_shot, base) if f_shot is not None else None
+    h0 = heldout(fit0, f_time, base, base.kink_params)
+    h0_loso = heldout(fit0, f_shot, base, base.kink_params) if f_shot is not None else None
 
     cands = build_candidates(shots, baseline)
     if not extensions:
@@ -184,7 +184,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     by_name = {c.name: c for c in cands}
 
     def predict_heldout(sc):
-        fixed = [p.name for p in by_name[sc.name].location]
+        fixed = [p.name for p in by_name[sc.name].location] + base.kink_params
         sc.heldout = {"time": heldout(sc.fit, f_time, base, fixed)}
         if f_shot is not None:
             sc.heldout["shot"] = heldout(sc.fit, f_shot, base, fixed)

@@ -218,6 +218,16 @@ class JointModel:
 
     # --- evaluation ---------------------------------------------------------------
     @property
+    def kink_params(self) -> list:
+        """Free parameters that only say when something stops: a position-only shot's
+        spin, whose size is known from where its curl ends.  Their derivative is a
+        kink's, which a held-out refit's single Gauss-Newton step cannot follow (a fold
+        that holds the curl's end moved one by 2600 sigma)."""
+        return [f"omega0[{i}]" for i, s in enumerate(self.shots)
+                if not s.theta_measured and s.omega0_curl_end is not None
+                and f"omega0[{i}]" in self.free]
+
+    @property
     def segments(self):
         """(shot index, coordinate, slice into the residual vector) of each segment."""
         return self._segments

@@ -175,8 +175,12 @@ def check_frames(video, frames, rig: Rig, fps_override=None,
     else:
         # one run from the video's start: track's verdict on a frame rests on every
         # frame before it (the first calibration, the markers' prediction, the cell index)
+        # and on the rock's path for a window after it (a cell index re-anchored across
+        # a loss: :mod:`.segments`)
         video_info = probe_video(video, fps_override=fps_override, check_end=False)
-        runs = [iter_frames(video, start=0, end=max(wanted, default=-1) + 1,
+        after = int(np.ceil(rig.tracking.segment_window_s * video_info.fps)) + 1
+        end = max(wanted, default=-1) + 1
+        runs = [iter_frames(video, start=0, end=min(end + after, video_info.n_frames),
                             fps_override=fps_override, **video_info.reading)]
     out = {}
     for frames_run in runs:

@@ -51,7 +51,10 @@ def _limit(rep, effect, param):
 def test_a_pick_four_times_its_limit_is_seen():
     """A clean draw's `none` comes with the pick's limit (median over its times; also
     in the JSON summary); the same draw with a pick of 4x that limit in the first 25-60 %
-    of the slide clears the pick's threshold (supported)."""
+    of the slide clears the pick's threshold.  (Supported - every rule met - is a
+    rate: >= 11 of 12 in the slow test below.  One CI draw, seed 1630400194357754300,
+    cleared it, delta-BIC 87.5 over 42.5, but its gain at the scan's nearest time was
+    36.1: not supported.)"""
     seed = _entropy()
     rng = np.random.default_rng(seed)
     m, noise = _draw(rng)
@@ -62,7 +65,8 @@ def test_a_pick_four_times_its_limit_is_seen():
     assert "detection_limit" in next(f.summary() for f in clean.findings
                                      if f.effect == "pick")
     rep = _pick_at(rng, m, limit, 4.0, noise)
-    assert _pick_supported(rep), (seed, limit, rep["verdict"])
+    pick = next(f for f in rep.findings if f.effect == "pick")
+    assert pick.delta_bic > pick.threshold, (seed, limit, pick.delta_bic, pick.threshold)
 
 
 @pytest.mark.slow
