@@ -131,6 +131,22 @@ def _verdict(rec, calib, calib_frame) -> FrameVerdict:
                         calib_frame if cal is not None else None)
 
 
+def _past(frames, end: int):
+    """``frames``, ending quietly where decoding fails at or after frame ``end`` (the
+    window read past the judged frames: a count a frame or two long, as variable frame
+    rates announce, is not the judged frames' error)."""
+    from ..errors import VideoError
+
+    last = -1
+    try:
+        for fr in frames:
+            last = fr.index
+            yield fr
+    except VideoError:
+        if last < end - 1:
+            raise
+
+
 def check_frames(video, frames, rig: Rig, fps_override=None,
                  progress=None) -> list[FrameVerdict]:
     """Judge frames as ``track`` does, by running its loop from the video's start to the
@@ -180,8 +196,8 @@ def check_frames(video, frames, rig: Rig, fps_override=None,
         video_info = probe_video(video, fps_override=fps_override, check_end=False)
         after = int(np.ceil(rig.tracking.segment_window_s * video_info.fps)) + 1
         end = max(wanted, default=-1) + 1
-        runs = [iter_frames(video, start=0, end=min(end + after, video_info.n_frames),
-                            fps_override=fps_override, **video_info.reading)]
+        runs = [_past(iter_frames(video, start=0, end=min(end + after, video_info.n_frames),
+                                  fps_override=fps_override, **video_info.reading), end)]
     out = {}
     for frames_run in runs:
         records, info = track_frames(frames_run, rig, path=video, progress=progress,
