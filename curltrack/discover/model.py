@@ -297,11 +297,19 @@ class JointModel:
     def whiten(self, v):
         """Divide by the noise and AR(1)-whiten each segment (v: (n,) or (n, k))."""
         v = np.asarray(v, dtype=float)
-        sig = self.sigma_vector()
-        out = v / (sig if v.ndim == 1 else sig[:, None])
-        for (j, c, sl), steps in zip(self._segments, self._frame_steps):
-            out[sl] = whiten(out[sl], self.shots[j].noise[c].rho, steps)
+        out = np.empty_like(v)
+        for i, (_, _, sl) in enumerate(self._segments):
+            out[sl] = self.whiten_segment(i, v[sl])
         return out
+
+    def whiten_segment(self, i: int, v):
+        """:meth:`whiten` of segment ``i``'s rows alone (v: (m,) or (m, k))."""
+        j, c, _ = self._segments[i]
+        s = self.shots[j]
+        sig = s.sigma[c][s.use[c]]
+        v = np.asarray(v, dtype=float)
+        return whiten(v / (sig if v.ndim == 1 else sig[:, None]), s.noise[c].rho,
+                      self._frame_steps[i])
 
     # --- parameters -----------------------------------------------------------------
     def vector(self):

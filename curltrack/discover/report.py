@@ -8,7 +8,7 @@ from .._atomic import atomic_path, write_json
 from .extend import choose as choose_extension
 from .extend import extension_object
 from .residuals import binned_means
-from .search import heldout_log_ratio, heldout_worse_p, judged_like
+from .search import heldout_log_ratio, heldout_worse_p, instrument_step, judged_like
 from .results import DiscoveryReport, Finding
 from .shots import COORDS
 
@@ -75,8 +75,13 @@ def _blockers(f, cand_bounds, heldout_p=None) -> list:
 
 
 def _at_bound(finding) -> bool:
-    """Whether a blocked finding has a parameter at its bound among its blockers."""
-    return any(b.startswith("parameter ") for b in finding.not_named_because or ())
+    """Whether a blocked finding has a parameter at its bound among its blockers (and no
+    instrument's jump left in its residuals: a patch of factor 0.05, at its bound,
+    fitted to a centimetre jump of the position is the jump, not something stronger
+    than the patch's range)."""
+    why = finding.not_named_because or ()
+    return (any(b.startswith("parameter ") for b in why)
+            and not any(b.startswith(JUMP_LEFT) for b in why))
 
 
 def _rms_by_coord(model, r_raw) -> dict:
@@ -151,6 +156,27 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN, r0=None) -> list:
     return sorted(out)
 
 
+JUMP_LEFT = "an instrument's jump is left in what it leaves"
+
+
+def _jump_left(sc, base) -> str | None:
+    """Why candidate ``sc`` is not told from an instrument's jump, or None: a jump of
+    one position coordinate stays in its fit's residuals at the 1 % look-elsewhere level
+    (:func:`~curltrack.discover.search.instrument_step`) - the data jumped, and the
+    candidate only smoothed it."""
+    if sc.fit is None:
+        return None
+    jump = instrument_step(base, sc.fit)
+    if jump is None or not jump["found"]:
+        return None
+    held = (f"held {jump['t_to_s'] - jump['t_from_s']:.1f} s" if jump["t_to_s"] is not None
+            else "to the end")
+    return (f"{JUMP_LEFT} (shot {jump['shot']}, {jump['coord']} from t = "
+            f"{jump['t_from_s']:.2f} s, {held}: chi-square {jump['gain']:.1f} over the "
+            f"{jump['threshold']:.1f} a jump reaches by chance); a rock's position cannot "
+            f"jump, an instrument's can")
+
+
 def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
     """The finding of one scored candidate (supported or not; a supported one lists what
     blocks its name, ``cand_bounds`` being its parameters at a bound)."""
@@ -182,6 +208,9 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
     if kw["supported"]:
         kw["not_named_because"] = _blockers(
             kw, cand_bounds, {c: heldout_worse_p(h0, sc.heldout["time"], c) for c in COORDS})
+        left = _jump_left(sc, base)
+        if left:
+            kw["not_named_because"].append(left)
         if kw["not_named_because"]:
             kw["evidence"] += "; not named: " + "; ".join(kw["not_named_because"])
     return Finding(**kw)
