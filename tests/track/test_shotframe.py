@@ -166,7 +166,9 @@ def test_angles_of_frames_without_a_certain_cell_fix_theta0():
     seed = int(np.random.SeedSequence().entropy % 2**32)
     rng = np.random.default_rng(seed)
     err = {False: [], True: []}
-    for _ in range(60):
+    # (the ratio of the two RMS over 60 draws: median 0.46, above 0.6 in 1.3 % of 150
+    # runs - CI seed 2447014506: 0.67; over 240 draws its spread is half)
+    for _ in range(240):
         t = np.arange(0.0, 4.0, 1 / 30)
         omega0, decel = rng.uniform(0.5, 3.0), rng.uniform(0.05, 0.3)
         phi = omega0 * t - 0.5 * decel * t ** 2 + rng.normal(0, np.radians(0.5), t.size)
