@@ -159,12 +159,15 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN, r0=None) -> list:
 JUMP_LEFT = "an instrument's jump is left in what it leaves"
 
 
-def _jump_left(sc, base) -> str | None:
+def _jump_left(sc, base, base_jump) -> str | None:
     """Why candidate ``sc`` is not told from an instrument's jump, or None: a jump of
     one position coordinate stays in its fit's residuals at the 1 % look-elsewhere level
     (:func:`~curltrack.discover.search.instrument_step`) - the data jumped, and the
-    candidate only smoothed it."""
-    if sc.fit is None:
+    candidate only smoothed it - and a jump explains the baseline's misfit as well as
+    the candidate does (``base_jump``: the jump scored on the baseline's fit).  (A true
+    ice slope whose fit left a box-shaped misfit beside the kink of a curl's end, while a
+    jump explained much less of the misfit than the slope, is left to the other rules.)"""
+    if sc.fit is None or base_jump is None or base_jump["delta_bic"] < sc.delta_bic:
         return None
     jump = instrument_step(base, sc.fit)
     if jump is None or not jump["found"]:
@@ -177,9 +180,10 @@ def _jump_left(sc, base) -> str | None:
             f"jump, an instrument's can")
 
 
-def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
+def _finding(sc, rms0, h0, h0_loso, base, cand_bounds, base_jump=None) -> Finding:
     """The finding of one scored candidate (supported or not; a supported one lists what
-    blocks its name, ``cand_bounds`` being its parameters at a bound)."""
+    blocks its name, ``cand_bounds`` being its parameters at a bound, ``base_jump`` the
+    instrument's jump on the baseline's fit: :func:`_jump_left`)."""
     thr = sc.threshold["threshold"]
     kw = dict(effect=sc.name, delta_bic=sc.delta_bic, delta_bic_linear=sc.delta_bic_linear,
               threshold=thr, bootstrap=sc.threshold, location_start=sc.location,
@@ -208,7 +212,7 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds) -> Finding:
     if kw["supported"]:
         kw["not_named_because"] = _blockers(
             kw, cand_bounds, {c: heldout_worse_p(h0, sc.heldout["time"], c) for c in COORDS})
-        left = _jump_left(sc, base)
+        left = _jump_left(sc, base, base_jump)
         if left:
             kw["not_named_because"].append(left)
         if kw["not_named_because"]:
@@ -235,7 +239,8 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
     bound_warnings = [f"baseline ({base.baseline}) parameter {b}: the baseline does not "
                       f"describe these shots within its range; no cause is named"
                       for b in base_bound]
-    findings = [_finding(sc, rms0, h0, h0_loso, base, cand_bounds.get(sc.name, []))
+    base_jump = instrument_step(base, fit0)
+    findings = [_finding(sc, rms0, h0, h0_loso, base, cand_bounds.get(sc.name, []), base_jump)
                 for sc in scores]
     supported = [(sc, f) for sc, f in zip(scores, findings) if f.supported]
     blocked = [(sc, f) for sc, f in supported if f.not_named_because]

@@ -385,7 +385,8 @@ def instrument_step(base: JointModel, fit: FitOut) -> dict | None:
     Returns
     -------
     dict or None
-        ``gain`` (chi-square), ``threshold`` (the gain a jump reaches by chance at
+        ``gain`` (chi-square), ``delta_bic`` (less ``k ln n`` for its size and
+        location(s), as the candidates'), ``threshold`` (the gain a jump reaches by chance at
         :data:`STEP_LEVEL` over the ``n_scanned`` jumps, Bonferroni), ``found`` (gain
         above it), ``shot``, ``coord``, ``t_from_s``, ``t_to_s`` (None: to the end);
         None without position segments.
@@ -420,7 +421,8 @@ def instrument_step(base: JointModel, fit: FitOut) -> dict | None:
         if best is None or gain[q] > best["gain"]:
             a, b = shapes[q]
             best = {"gain": float(gain[q]), "shot": j, "coord": c, "t_from_s": float(t[a]),
-                    "t_to_s": float(t[b]) if b < m else None}
+                    "t_to_s": float(t[b]) if b < m else None,
+                    "delta_bic": float(gain[q] - (2 if b == m else 3) * np.log(fit.n))}
     if best is not None:
         best["n_scanned"] = n_scanned
         best["threshold"] = float(stats.chi2.isf(STEP_LEVEL / n_scanned, 1))

@@ -195,8 +195,12 @@ def test_ice_slope_is_tested_on_position_only_shots_that_curl_both_ways():
     # (named in 8 of 9 draws tried; in one - CI, seed 3337378772 - the slope's drift
     # read as a curl that ends 17 s before the slide, a pick and the slope both fitted
     # it, and the verdict was unexplained: the candidate's estimate there was 19 % off.
-    # What must hold: never another name, and a named slope is right)
-    assert rep.verdict in ("ice_slope", "unexplained"), f"seed {seed}: {rep.verdict}"
+    # What must hold: never another name, and a named slope is right.  'none' only where
+    # the slope is not told from an instrument's jump, and says so - CI seed 2513568008:
+    # a jump explained the baseline's misfit as well and stayed in the slope's residuals)
+    jump = any("instrument's jump" in b for b in found.not_named_because or ())
+    assert rep.verdict in ("ice_slope", "unexplained") or (rep.verdict == "none" and jump), \
+        f"seed {seed}: {rep.verdict}"
     if rep.verdict == "ice_slope":
         est, err = found.params["slope_x_mm_per_m"], found.params_err["slope_x_mm_per_m"]
         assert abs(est - truth["slope_x_mm_per_m"]) < 3 * err + 0.1 * strength, \
