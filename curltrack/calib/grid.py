@@ -151,10 +151,7 @@ class Calibration(PlaneMap):
 
     def in_checked_lens(self, pts_px) -> np.ndarray:
         """Whether observed pixels (N, 2) lie where the lens model is confirmed."""
-        p = np.atleast_2d(np.asarray(pts_px, float))
-        if self.lens_radius_px is None:
-            return np.ones(len(p), bool)
-        return np.hypot(*(p - self.K[:2, 2]).T) <= self.lens_radius_px
+        return within_radius(pts_px, self.K, self.lens_radius_px)
 
     def to_dict(self) -> dict:
         """JSON-ready dict (CALIB.json)."""
@@ -455,7 +452,7 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
     if len(xs) < 200:
         raise TrackingError("no grid found: almost no thread-like pixels in the frame")
     guesses = initial_lattice(resp, xs, wt, c, rig.spacing_x_m / rig.spacing_y_m,
-                              alternatives=LATTICE_ALTERNATIVES)
+                              n_guesses=1 + LATTICE_ALTERNATIVES)
     if not guesses:
         raise TrackingError("no grid found: no two periodic thread families in the frame")
     first = None
@@ -465,8 +462,7 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
         try:
             Hc, K_fit, dist, info, lens_radius = _fit_lens_schedules(xs, wt, Hc, K, w, h, rig)
             # (the threads' colours, origin and residual from the checked lens only)
-            sel = (slice(None) if lens_radius is None
-                   else np.hypot(*(xs - K_fit[:2, 2]).T) <= lens_radius)
+            sel = within_radius(xs, K_fit, lens_radius)
             cal = _to_metric(img, rig, model, contrast, xs[sel], wt[sel], Hc, K_fit, dist,
                              info)
             break
@@ -480,6 +476,15 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
                          f"threads confirm the lens model only within {lens_radius:.0f} px "
                          f"of the principal point; the rock is not measured beyond")
     return cal
+
+
+def within_radius(pts_px, K, radius) -> np.ndarray:
+    """Whether pixels (N, 2) lie within ``radius`` (px; None: anywhere) of the principal
+    point of camera matrix ``K``: the checked lens (:func:`checked_lens_radius`)."""
+    p = np.atleast_2d(np.asarray(pts_px, float))
+    if radius is None:
+        return np.ones(len(p), bool)
+    return np.hypot(*(p - K[:2, 2]).T) <= radius
 
 
 def _fit_lens_schedules(xs, wt, Hc, K, w, h, rig):
@@ -527,7 +532,7 @@ def _fit_lens(xs, wt, Hc, K, w, h, rig, growing, free, free_from):
     if lens_radius is not None:
         # the threads beyond the checked radius (squeezed together, or wrongly indexed
         # there) must not bend the fit of those within it: refit on those
-        inner = np.hypot(*(xs - K[:2, 2]).T) <= lens_radius
+        inner = within_radius(xs, K, lens_radius)
         fit = fit_lattice(xs[inner], wt[inner], Hc, K, dist, free=LENS_PARAMS,
                           radii=(None,), band_px=2.5, iterations=12)
         if fit[3] and min(fit[3]["lines_a"], fit[3]["lines_b"]) >= 3:

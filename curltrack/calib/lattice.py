@@ -110,7 +110,7 @@ def _refine_wavevector(xs, w, k, n_steps: int = 5):
     return k, float(np.angle(z) / (2 * np.pi))
 
 
-def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0, alternatives: int = 0):
+def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0, n_guesses: int = 1):
     """Affine first guess of the lattice from the response's spectrum.
 
     Parameters
@@ -124,16 +124,16 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0, alternatives: 
     cell_ratio : float
         spacing_x / spacing_y of the rig: the two families' periods (px) must have about
         this ratio (either way round).
-    alternatives : int
-        With n > 0, a list of up to n + 1 guesses, best first: the next pairs of
-        families by strength (a square lattice's diagonals, a stack of crossings, can
-        score as high as its threads; the caller tries the next when a fit fails).
+    n_guesses : int
+        Pairs of families returned, strongest first (a square lattice's diagonals, a
+        stack of crossings, can score as high as its threads: the caller tries the next
+        when a fit fails).
 
     Returns
     -------
-    A : (2, 3) float or None
-        Rows map ``(x - cx, y - cy, 1)`` to cells ``a``, ``b``; None if fewer than two
-        periodic families were found (a list, possibly empty, with ``alternatives``).
+    list of (2, 3) float
+        Up to ``n_guesses`` lattices whose rows map ``(x - cx, y - cy, 1)`` to cells
+        ``a``, ``b``; empty if fewer than two periodic families were found.
     """
     import cv2
 
@@ -156,7 +156,7 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0, alternatives: 
     fr = np.hypot(fx, fy)
     mag[(fr > 1 / min_period) | (fr < 1 / max_period) | (fy < 0) | ((fy == 0) & (fx < 0))] = 0
     if mag.max() <= 0:
-        return None
+        return []
     bg = np.median(mag[mag > 0])
     rel = xs - centre
     near = np.hypot(*rel.T) < 0.3 * min(h, wd)
@@ -184,7 +184,7 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0, alternatives: 
             axis = min(abs(normal[0]), abs(normal[1])) < 1e-3
             found.append((normal, res[0], res[1] * (0.5 if axis else 1.0)))
     if not found:
-        return None
+        return []
     # A family whose spectral peak was not among the strongest (faint threads, a codec's
     # 16 px blocks stronger along the image axis) is looked for across the strongest
     # family: perpendicular to it, at the period the rig's cell ratio puts it.
@@ -208,11 +208,8 @@ def initial_lattice(resp, xs, w, centre, cell_ratio: float = 1.0, alternatives: 
                 continue
             pairs.append((c1[2] + c2[2], len(pairs), (c1, c2)))
     pairs = [p for _, _, p in sorted(pairs, key=lambda q: (-q[0], q[1]))]
-    guesses = [_pair_lattice(pair, rel[near], w[near], cell_ratio, min_period, max_period)
-               for pair in pairs[:alternatives + 1]]
-    if alternatives:
-        return guesses
-    return guesses[0] if guesses else None
+    return [_pair_lattice(pair, rel[near], w[near], cell_ratio, min_period, max_period)
+            for pair in pairs[:n_guesses]]
 
 
 def _pair_lattice(pair, rel, w, cell_ratio, min_period, max_period):
