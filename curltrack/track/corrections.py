@@ -70,6 +70,7 @@ def apply_corrections(records, corr: dict, calib, rig) -> list[str]:
     from ..calib.grid import pixel_scale, pixel_steps
     from ..calib.lens import apply_h, undistort
     from .parallax import similarity_fit
+    from .pipeline import read_lattice_at_rock
 
     L = np.array([[m.x_m, m.y_m] for m in rig.markers])
     by_frame = {r.frame: r for r in records}
@@ -86,19 +87,25 @@ def apply_corrections(records, corr: dict, calib, rig) -> list[str]:
             rec.status, rec.centre_app = "excluded by the corrections file", None
     for f, px in sorted(corr["clicked"].items()):
         rec = by_frame.get(f)
-        if rec is None or rec.H is None or calib is None:
-            warnings.append(f"{corr['file']}: frame {f}: no grid was followed on this frame; "
-                            "the clicks cannot be measured (ok = 0)")
+        if rec is None or rec.H is None or calib is None or rec.grid_status:
+            # (a homography only predicted from the frames before - the threads hidden
+            # by a broom - is millimetres off where the rock is, and says nothing of it)
+            why = f" ({rec.grid_status})" if rec is not None and rec.grid_status else ""
+            warnings.append(f"{corr['file']}: frame {f}: the grid was not measured on this "
+                            f"frame{why}; the clicks cannot be measured (ok = 0)")
             continue
         M = len(L)
         q = undistort(np.vstack([px, pixel_steps(px.mean(axis=0))]), calib.K, calib.dist)
         on_ice = apply_h(rec.H, q)
         c, phi, _, _ = similarity_fit(L, on_ice[:M])
-        mpp = pixel_scale(on_ice[M:])
+        if rec.pose is not None:  # the lattice's misfit and sigma at the clicked rock
+            mpp = read_lattice_at_rock(rec, rec.pose, calib, L, q, on_ice[:M], c)
+        else:
+            mpp = pixel_scale(on_ice[M:])
+            if not np.isfinite(rec.grid_sigma_m):
+                rec.grid_sigma_m = 0.3 * mpp
         rec.markers_px, rec.centre_app, rec.phi, rec.scale = px, c, phi, scale
         rec.sigma_m = corr["click_sigma_px"] * mpp
-        if not np.isfinite(rec.grid_sigma_m):
-            rec.grid_sigma_m = 0.3 * mpp
         rec.contrast = contrast
         rec.status = ""
         rec.clicked = True

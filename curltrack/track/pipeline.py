@@ -107,6 +107,35 @@ class FrameRecord:
     shutter_pending: tuple | None = None
 
 
+def read_lattice_at_rock(rec: FrameRecord, pose, calib, layout, q, ice, centre) -> float:
+    """Set ``rec``'s lattice terms at the rock from the frame's ``pose``: the misfit
+    (``misfit_m``, ``misfit_sigma_m``) and the homography's 1 sigma (``grid_sigma_m``).
+
+    ``q`` (M + 3, 2): the markers and :func:`pixel_steps` at their centre, undistorted
+    (px); ``ice`` (M, 2) the markers on the ice through ``pose.H`` (m) and ``centre``
+    their similarity fit's centre.  Returns the ice metres per image pixel at the rock.
+    """
+    from ..calib.grid import pixel_scale
+    from ..calib.lattice import misfit_at
+    from ..calib.lens import apply_h
+
+    M = len(layout)
+    if pose.misfit is not None:
+        # what the frame's homography misses near the rock (a rolling shutter's shear
+        # under a shaking camera, the lens model's misfit), from the threads around
+        # it: the centre with it taken off each marker
+        spacing = np.array([calib.spacing_x_m, calib.spacing_y_m])
+        d, sd = misfit_at(pose.misfit, (q[:M] - calib.K[:2, 2]) / calib.K[0, 0])
+        rec.misfit_m = tuple(float(v) for v in
+                             similarity_fit(layout, ice - d * spacing)[0] - centre)
+        rec.misfit_sigma_m = tuple(float(v) for v in sd.mean(axis=0) * spacing)
+    mpp = pixel_scale(apply_h(pose.H, q[M:]))
+    # (the homography's uncertainty where the rock is, not at the image centre)
+    g_px = pose.sigma_px_at((q[:M].mean(axis=0) - calib.K[:2, 2]) / calib.K[0, 0])
+    rec.grid_sigma_m = (g_px if np.isfinite(g_px) else 0.3) * mpp
+    return mpp
+
+
 def rock_in_image(layout_m, markers_px, rock_diameter_m: float):
     """(centre px, radius px) of the rock's top in the image from its markers: the
     layout's origin (the rock's axis) under the similarity that maps the rig's layout
@@ -424,7 +453,6 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     """
     from ..calib import GridTracker
     from ..calib.grid import pixel_scale, pixel_steps
-    from ..calib.lattice import misfit_at
     from ..calib.lens import apply_h, undistort
 
     st = rig.tracking
@@ -530,7 +558,9 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             last_H = pose.H
         rec.H = pose.H
         rec.spacing_px = pose.spacing_px
-        if not strict:  # (doctor's few frames: the pose whole; track keeps H only)
+        if not strict or not found:
+            # (doctor's few frames: the pose whole; track keeps H only, and the pose of
+            # a frame whose markers are hidden for clicks to be measured on it)
             rec.pose = pose
         if not pose.ok:
             rec.grid_status = f"grid: {pose.message}"
@@ -565,23 +595,12 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
                 c, phi, s, _ = similarity_fit(L, ice)
             else:
                 rec.shutter_pending = (ice, seen_at)
-        if pose.misfit is not None:
-            # what the frame's homography misses near the rock (a rolling shutter's
-            # shear under a shaking camera, the lens model's misfit), from the threads
-            # around it: the centre with it taken off each marker
-            spacing = np.array([calib.spacing_x_m, calib.spacing_y_m])
-            d, sd = misfit_at(pose.misfit, (q[:M] - calib.K[:2, 2]) / calib.K[0, 0])
-            rec.misfit_m = tuple(float(v) for v in similarity_fit(L, ice - d * spacing)[0] - c)
-            rec.misfit_sigma_m = tuple(float(v) for v in sd.mean(axis=0) * spacing)
-        mpp = pixel_scale(on_ice[M:])
+        mpp = read_lattice_at_rock(rec, pose, calib, L, q, ice, c)
         rec.centre_app, rec.phi, rec.scale = c, phi, s
         if fr.index % outline_every == 0:  # the scale's second ruler
             rec.outline_m = outline_radius(img, pose.H, calib.K, calib.dist, c,
                                            rig.rock_diameter_m / 2)[0]
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
-        # (the homography's uncertainty where the rock is, not at the image centre)
-        g_px = pose.sigma_px_at((q[:M].mean(axis=0) - calib.K[:2, 2]) / calib.K[0, 0])
-        rec.grid_sigma_m = (g_px if np.isfinite(g_px) else 0.3) * mpp
         if fr.field is not None:
             rec.sigma_m *= FIELD_SIGMA_FACTOR
             rec.grid_sigma_m *= FIELD_SIGMA_FACTOR

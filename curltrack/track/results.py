@@ -51,6 +51,14 @@ SIGMA_MISFIT_SCALE = 0.32
 #: set-ups tracked to < 1 mm (action, action-strong, action-fisheye, phone, ladder);
 #: see the README ("Per-frame sigma").
 SIGMA_SLOW_RATIO = 1.0
+#: The angle's slowly varying error where theta0 is fitted, which theta0's own fit
+#: (white / AR(1) frame noise) cannot see, as a fraction of the shot's median random
+#: angle variance: every angle is taken from theta0, so it is every row's.  Measured
+#: against the truth on rendered 720x480 draws (ladder and hand-held, 2 s at 59.94 Hz):
+#: the mean angle error's variance left over theta0's sigma was 0.15 x (23 interlaced
+#: draws measured per field) and 0.2 x (24 progressive) the random variance; theta0's
+#: sigma alone was 1.4-1.6x too small (one draw 4.6 sigma off).
+THETA0_SLOW_RATIO = 0.2
 #: An origin (the rock at t = 0) whose fit is uncertain by more than this (m) is warned
 #: about, and its fit's own error is then every row's (the bench hand-held: its first
 #: frames disagree by ~3 mm and bend the origin 5 mm; sigma without it 1.7 mm)
@@ -89,7 +97,8 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     white part of its fit's value at t = 0, from the calibrated rows; ``origin_sigma``
     when given: a late first frame's extrapolation), ``sys_xy`` (parallax, the fields'
     offset).  ``sigma_theta``: the
-    random part, ``theta0_sigma`` and ``sys_theta``.  Scales are NaN (the caller keeps
+    random part, ``theta0_sigma`` with the slow error it cannot see
+    (:data:`THETA0_SLOW_RATIO` x the median random variance) and ``sys_theta``.  Scales are NaN (the caller keeps
     its own sigmas) with fewer than :data:`MIN_SIGMA_DOF` degrees of freedom.
     """
     from .scatter import path_scatter
@@ -117,8 +126,10 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     c = path_scatter(tt, theta, pix_theta, runs=field, breaks=brt)
     if c["dof"] >= MIN_SIGMA_DOF:
         fast = c["scale"] * pix_theta
+        measured = ok & np.isfinite(theta)
+        slow2 = THETA0_SLOW_RATIO * float(np.median(fast[measured])) ** 2 if measured.any() else 0.0
         out.update(scale_theta=c["scale"],
-                   sigma_theta=np.sqrt(fast ** 2 + theta0_sigma ** 2
+                   sigma_theta=np.sqrt(fast ** 2 + theta0_sigma ** 2 + slow2
                                        + np.asarray(sys_theta) ** 2))
     return out
 

@@ -37,12 +37,21 @@ def test_broom_hidden_frame_measured_from_clicks(tmp_path):
     fixed = track_video(tmp_path / "v.mp4", rig, corrections=corr)
     d = fixed.data.set_index("frame")
     msg = f"seed {seed}, frames {picked}"
+    refused = [w for w in fixed.meta["warnings"] if "the clicks cannot be measured" in w]
+    measured = 0
     for f in picked:
-        assert d.loc[f, "ok"] == 1, msg
+        if d.loc[f, "ok"] == 0:
+            # the broom hid the threads too: no measured homography, the clicks refused
+            # by name (seed 1083450211: a predicted one put frame 28 3.5 mm off, sigma 1.2)
+            assert any(f"frame {f}: the grid was not measured" in w for w in refused), msg
+            continue
+        measured += 1
         err = np.hypot(d.loc[f, "x"] - truth.loc[f, "x"], d.loc[f, "y"] - truth.loc[f, "y"])
         assert err < 0.002, f"frame {f}: {err * 1000:.2f} mm from truth ({msg})"
-        # the reported sigma is the click precision's, not a tracked frame's
+        # the reported sigma is the click precision's and the lattice's at the rock
         assert 0.2 < d.loc[f, "sigma_xy"] * 1000 < 1.5, msg
+        assert err < 4 * d.loc[f, "sigma_xy"], f"frame {f}: {err * 1000:.2f} mm ({msg})"
+    assert measured >= 1, msg
     assert d.loc[excluded, "ok"] == 0
     c = fixed.meta["corrections"]
     assert c["frames_from_clicks"] == picked and c["frames_excluded"] == [excluded]
