@@ -13,7 +13,7 @@ from ..series import Series, make_meta
 from .outline import scale_check, scale_check_resolution
 from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, correct_parallax,
                        estimate_height, focal_for_height, layout_scale_mismatch)
-from .shotframe import to_shot_frame, window_rows
+from .shotframe import WINDOW_S, to_shot_frame, window_rows
 from ..series.stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
@@ -63,6 +63,9 @@ THETA0_SLOW_RATIO = 0.2
 #: about, and its fit's own error is then every row's (the bench hand-held: its first
 #: frames disagree by ~3 mm and bend the origin 5 mm; sigma without it 1.7 mm)
 ORIGIN_WARN_M = 1e-3
+#: Fewest rows in the first :data:`~.shotframe.WINDOW_S` of a segment for it to give the
+#: origin on its own (the initial quadratic's least)
+ORIGIN_MIN_ROWS = 8
 #: Fewest degrees of freedom (rows - spline parameters, x and y counted apart) for a
 #: video's own sigma scale; with fewer the scales above are used.
 MIN_SIGMA_DOF = 30
@@ -361,8 +364,35 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
     from .segments import resolve_segments
 
     seg = np.array([r.segment for r in records])
-    shift, unresolved, notes = resolve_segments(
-        t, centre, seg, ok, (calib.spacing_x_m, calib.spacing_y_m), settings=settings)
+    spacing = (calib.spacing_x_m, calib.spacing_y_m)
+    shift, unresolved, notes = resolve_segments(t, centre, seg, ok, spacing, settings=settings)
+    first = int(np.flatnonzero(ok)[0]) if ok.any() else None
+    if first is not None and unresolved[first]:
+        # the release's segment could not be put in the largest one's cell index: the
+        # origin (the rock at t = 0) is then extrapolated back over the lost frames.
+        # Where that is too uncertain to give (a hand-held action clip: 34 frames, the
+        # grid lost for 0.9 s, the whole video refused as "the first measured frame is at
+        # 2.03 s") and the release's segment holds an origin window of its own, that
+        # segment is the reference and the later frames wait for --start-frame.
+        from .shotframe import _origin_sigma
+
+        kept = np.flatnonzero(ok & ~unresolved)
+        own = np.flatnonzero(ok & (seg == seg[first]))
+        refused = kept.size == 0 or _origin_sigma(
+            t[kept], centre[kept] + shift[kept], settings.max_deceleration_m_s2,
+            extrapolated=True) > settings.max_origin_sigma_m
+        if refused and np.count_nonzero(t[own] <= t[first] + WINDOW_S) >= ORIGIN_MIN_ROWS:
+            shift, unresolved, notes = resolve_segments(t, centre, seg, ok, spacing,
+                                                        settings=settings,
+                                                        reference=seg[first])
+            later = np.flatnonzero(unresolved)
+            if later.size:
+                notes.append(
+                    f"frames {records[later[0]].frame}-{records[later[-1]].frame}: on a "
+                    "lattice the rock's path cannot place against the release's (frames "
+                    f"{records[own[0]].frame}-{records[own[-1]].frame}, which give the "
+                    f"origin): ok = 0; --start-frame {records[later[0]].frame} measures "
+                    "them on their own")
     for i in np.flatnonzero(np.any(shift != 0, axis=1)):
         centre[i] += shift[i]
         records[i].H = np.array([[1.0, 0, shift[i, 0]], [0, 1.0, shift[i, 1]],

@@ -132,7 +132,8 @@ def _side(t, p, sel_ref, sel_seg, before, st):
     return path_step(t[ref], p[ref], t[seg], p[seg])
 
 
-def resolve_segments(t, p, segment, ok, spacing_m, settings: TrackingSettings | None = None):
+def resolve_segments(t, p, segment, ok, spacing_m, settings: TrackingSettings | None = None,
+                     reference=None):
     """Whole-cell offsets of the grid's segments, from the rock's path.
 
     Parameters
@@ -149,12 +150,15 @@ def resolve_segments(t, p, segment, ok, spacing_m, settings: TrackingSettings | 
         Thread spacings along the lattice's x and y (m).
     settings : TrackingSettings, optional
         The ``segment_*`` thresholds (default: the defaults).
+    reference : int, optional
+        The segment whose cell index the others are put in (default: the one with most
+        measured frames).
 
     Returns
     -------
     shift : (N, 2) array
         Add to ``p`` (and to the frame's lattice frame) to put every resolved segment in
-        the reference segment's cell index (the segment with most measured frames).
+        the reference segment's cell index.
     unresolved : (N,) bool array
         Measured frames of segments whose offset the path does not tell.
     notes : list of str
@@ -170,7 +174,7 @@ def resolve_segments(t, p, segment, ok, spacing_m, settings: TrackingSettings | 
     ids, counts = np.unique(segment[ok], return_counts=True)
     if len(ids) < 2:
         return shift, np.zeros(len(t), bool), []
-    resolved = {ids[np.argmax(counts)]}
+    resolved = {ids[np.argmax(counts)] if reference is None else reference}
     pending = set(ids) - resolved
     notes = []
     q = p.copy()

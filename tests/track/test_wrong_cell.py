@@ -178,3 +178,63 @@ def test_a_segment_whose_rows_scatter_is_not_placed():
     wild[:n_seg] -= wild[:n_seg].mean(axis=0) - clean[:n_seg].mean(axis=0)  # mean kept
     shift, unresolved, _ = resolve_segments(t, wild, seg, ok, s)
     assert unresolved[:n_seg].all() and not shift.any(), f"seed {seed}: placed {shift[0]}"
+
+
+def _records_on_two_lattices(rng, gap_s, first_s, placeable):
+    """Records of a 30 fps shot whose grid is lost for ``gap_s`` after ``first_s``: a
+    first segment, then a second one whole cells off (or, unless ``placeable``, off by a
+    fraction of a cell too, which the rock's path cannot place)."""
+    from curltrack.track.pipeline import FrameRecord
+
+    sim = simulate_series(ShotModel(v0=rng.uniform(1.0, 2.5), omega0=rng.uniform(0.5, 2.5)),
+                          fps=30).data
+    n = min(len(sim), 150)
+    t = sim.t.to_numpy()[:n]
+    p = sim[["x", "y"]].to_numpy()[:n] + rng.normal(0, 0.7e-3, (n, 2))
+    a, b = int(round(first_s * 30)), int(round((first_s + gap_s) * 30))
+    off = rng.integers(-2, 3, 2) * 0.15 + (0 if placeable else rng.uniform(0.04, 0.07, 2))
+    records = []
+    for i in range(n):
+        seg = 0 if i < a else 1
+        r = FrameRecord(int(i), float(t[i]), status="" if (i < a or i >= b) else "grid: lost")
+        r.segment, r.H = seg, np.eye(3)
+        r.centre_app = p[i] + (off if seg else 0)
+        records.append(r)
+    ok = np.array([r.status == "" for r in records])
+    centre = np.array([r.centre_app for r in records])
+    centre[~ok] = np.nan
+    return records, t, centre, ok, a, b
+
+
+def test_the_release_segment_is_kept_when_the_origin_cannot_be_extrapolated():
+    """The grid lost for 0.7-1.2 s after the first 1.0-1.3 s, the later lattice not
+    placeable: the release's segment gives the origin and the later frames are ok = 0
+    with a note naming --start-frame (not the whole video refused, nor its later frames
+    taken as the reference with an origin extrapolated back over seconds).  With the
+    first segment too short for an origin of its own, the largest stays the reference."""
+    from types import SimpleNamespace
+
+    from curltrack.settings import TrackingSettings
+    from curltrack.track.results import _resolve_cells
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    calib = SimpleNamespace(spacing_x_m=0.15, spacing_y_m=0.15)
+    st = TrackingSettings()
+    records, t, centre, ok, a, b = _records_on_two_lattices(
+        rng, rng.uniform(0.7, 1.2), rng.uniform(1.0, 1.3), placeable=False)
+    warnings = []
+    idx = _resolve_cells(records, t, centre, ok, calib, warnings, "v.mp4", st)
+    assert idx[0] == 0 and idx[-1] == a - 1, f"seed {seed}: kept {idx[0]}-{idx[-1]}"
+    assert all("cell index not certain" in r.status for r in records[b:]), f"seed {seed}"
+    assert any(f"--start-frame {b}" in w for w in warnings), f"seed {seed}: {warnings}"
+    # a first segment of 5 frames cannot give the origin: the largest is the reference
+    records, t, centre, ok, a, b = _records_on_two_lattices(
+        rng, rng.uniform(0.7, 1.2), 5 / 30, placeable=False)
+    idx = _resolve_cells(records, t, centre, ok, calib, [], "v.mp4", st)
+    assert idx[0] == b and not ok[:a].any(), f"seed {seed}: kept from {idx[0]}"
+    # a placeable later lattice is placed, whichever is the reference
+    records, t, centre, ok, a, b = _records_on_two_lattices(
+        rng, rng.uniform(0.3, 0.6), rng.uniform(1.0, 1.3), placeable=True)
+    idx = _resolve_cells(records, t, centre, ok, calib, [], "v.mp4", st)
+    assert len(idx) == a + len(t) - b, f"seed {seed}"
