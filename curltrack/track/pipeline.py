@@ -13,7 +13,7 @@ The tracker never reads renderer truth: everything comes from the pixels and the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass, field as dc_field, replace
 
 import numpy as np
 
@@ -469,6 +469,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     rec_segment = 0  # grid segment of markers_ice
     frozen = _FrozenCheck()
     last_H = None  # the last frame's homography (undistorted px -> lattice m)
+    img = None
     for fr in frames:
         rec = FrameRecord(fr.index, fr.t, field=fr.field)
         k = fr.sample  # running exposure index (frames, or fields of interlaced video)
@@ -611,7 +612,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     if row_time is not None:
         _settle_shutter(records, L)
     info = {"calib": calib, "calib_msg": calib_msg, "calib_frame": calib_frame,
-            "n_markers": len(L)}
+            "n_markers": len(L), "shape": None if img is None else img.shape[:2]}
     if not strict:
         return records, info
     if records and not seen_markers:
@@ -742,6 +743,25 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
                 progress=_counting(advance, report, total) if progress or report else None,
                 outline_every=max(2, total // OUTLINE_FRAMES),
                 row_time=_row_time(rig, info, fields))
+        readout = None
+        if not rig.rolling_shutter_ms and not fields:
+            readout = _measured_readout(records, loop_info, info)
+            if readout.found:
+                # a rolling shutter shown by the grid: the frames measured again with
+                # each marker timed at its row (a second pass over the video)
+                # (a sensor reads its rows within one frame period at most)
+                rig = replace(rig, rolling_shutter_ms=1e3 * min(readout.readout_s,
+                                                                1.0 / info.fps))
+                with threadpool_limits(limits=1, user_api="blas"), \
+                        progress_bar("rolling shutter", total, enabled=progress) as advance:
+                    records, loop_info = track_frames(
+                        iter_frames(video_path, start=start, end=end, exclude=exclude,
+                                    fps_override=rig.fps, **info.reading), rig,
+                        path=video_path,
+                        progress=(_counting(advance, report, total)
+                                  if progress or report else None),
+                        outline_every=max(2, total // OUTLINE_FRAMES),
+                        row_time=_row_time(rig, info, fields))
         blank = _blank_lead(records) if start_frame is None else 0
         if blank:  # black / empty frames before the scene: t = 0 at the first real frame
             records, start = records[blank:], records[blank].frame
@@ -770,6 +790,16 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         raise
     finally:
         cv2.setNumThreads(threads_before)
+    if readout is not None and readout.n_frames:
+        series.meta["rolling_shutter_measured_ms"] = round(1e3 * readout.readout_s, 3)
+        series.meta["rolling_shutter_measured_sigma_ms"] = round(1e3 * readout.sigma_s, 3)
+        if readout.found:
+            series.meta["rolling_shutter_source"] = "measured from the grid"
+            series.meta["warnings"].append(
+                f"{video_path}: the grid shears with the camera's motion as a rolling "
+                f"shutter reading its rows over {1e3 * readout.readout_s:.1f} +- "
+                f"{1e3 * readout.sigma_s:.1f} ms does: each marker timed at its row with "
+                "it (give [camera].rolling_shutter_ms in the rig if it is known)")
     if corr is not None:
         series.meta["corrections"] = {
             "file": corr["file"], "click_sigma_px": corr["click_sigma_px"],
@@ -792,6 +822,20 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         write_debug_frames(video_path, debug_dir, debug_frames, records, series,
                            loop_info["calib"], rig)
     return series
+
+
+def _measured_readout(records, loop_info, info):
+    """The rolling shutter's readout measured from the frames' grids
+    (:func:`curltrack.track.shutter.estimate_readout`)."""
+    from .shutter import ReadoutEstimate, estimate_readout
+
+    calib = loop_info.get("calib")
+    good = [r for r in records if r.H is not None and r.grid_status == ""]
+    if calib is None or loop_info.get("shape") is None or len(good) < 3:
+        return ReadoutEstimate(np.nan, np.nan, 0)
+    return estimate_readout([r.t for r in good], [r.H for r in good], calib.K[:2, 2],
+                            loop_info["shape"], info.rotation_deg,
+                            decoded_rotated=info.decoder != "pyav")
 
 
 def _write_verdict_frames(video_path, debug_dir, frames, rig) -> None:

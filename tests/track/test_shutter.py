@@ -98,3 +98,63 @@ def test_markers_seen_at_their_rows_times_are_moved_to_one_instant():
     np.testing.assert_allclose(back, truth, atol=2e-4, err_msg=str(seed))
     _, phi, _, _ = similarity_fit(layout, back)
     assert abs(np.angle(np.exp(1j * (phi - phi0)))) < 2e-3, seed
+
+
+def _sheared_homographies(rng, readout_s, rotation, mirrored, n=150, fps=30.0,
+                          shape=(540, 960)):
+    """Homographies (undistorted px -> ice m) of a camera moving over the ice with a
+    random shaking velocity, each row read ``readout_s`` * its sensor row fraction later:
+    the image of the ice sheared by the velocity times the readout."""
+    from curltrack.track.shutter import sensor_row_fraction
+
+    c = np.array([shape[1] / 2, shape[0] / 2])
+    pts = np.array([c, c + (1.0, 0.0), c + (0.0, 1.0)])
+    f = sensor_row_fraction(pts, shape, rotation, True)
+    grad = np.array([f[1] - f[0], f[2] - f[0]])
+    t = np.arange(n) / fps
+    # image velocity (px/s): following at up to ~300 px/s plus a 2-6 Hz shake
+    v = (rng.uniform(-300, 300, 2)[None, :] * np.minimum(t, 1.0)[:, None]
+         + rng.uniform(20, 80) * np.sin(2 * np.pi * rng.uniform(2, 6) * t[:, None]
+                                         + rng.uniform(0, 6, 2)))
+    s = rng.uniform(0.002, 0.004)  # m per px
+    psi = rng.uniform(0, 2 * np.pi) + np.cumsum(rng.normal(0, 0.002, n))
+    flip = np.diag([1.0, -1.0 if mirrored else 1.0])
+    Hs = []
+    centre = np.zeros(2)  # the ice under the image centre: it moves back as the image moves
+    for k in range(n):
+        A = s * flip @ np.array([[np.cos(psi[k]), -np.sin(psi[k])],
+                                 [np.sin(psi[k]), np.cos(psi[k])]])
+        centre = centre - A @ v[k] / fps
+        # p_true = p_obs - v R (f(p_obs) - f(c)): an affine map of p_obs
+        B = np.eye(2) - readout_s * np.outer(v[k], grad)
+        L = A @ B
+        H = np.eye(3)
+        H[:2, :2] = L
+        H[:2, 2] = centre - L @ c
+        Hs.append(H)
+    return t, np.array(Hs), c, shape
+
+
+@pytest.mark.parametrize("rotation", [0, 90, 180, 270])
+def test_readout_measured_from_the_lattice_shear(rotation):
+    """A rolling shutter's readout (3-30 ms) is recovered from the frames' homographies
+    under the camera's motion, for any rotation tag and a lattice mirrored or not; a
+    global shutter (0 ms) is not taken for one."""
+    from curltrack.track.shutter import estimate_readout
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    readout = rng.uniform(0.003, 0.030)
+    mirrored = bool(rng.integers(2))
+    t, Hs, c, shape = _sheared_homographies(rng, readout, rotation, mirrored)
+    # each homography measured to ~0.05 px: noise on the lattice's map
+    noisy = Hs * (1 + rng.normal(0, 2e-5, Hs.shape))
+    est = estimate_readout(t, noisy, c, shape, rotation)
+    what = f"seed {seed}: readout {1e3 * readout:.2f} ms, mirrored {mirrored}"
+    assert est.found, what
+    # (first-order algebra and central-difference velocities: ~1-2 % off on clean maps)
+    assert abs(est.readout_s - readout) < 0.05 * readout + 0.3e-3, \
+        f"{what}: {1e3 * est.readout_s:.2f} +- {1e3 * est.sigma_s:.2f} ms"
+    t, Hs, c, shape = _sheared_homographies(rng, 0.0, rotation, mirrored)
+    est = estimate_readout(t, Hs * (1 + rng.normal(0, 2e-5, Hs.shape)), c, shape, rotation)
+    assert not est.found, f"{what}: a global shutter read as {1e3 * est.readout_s:.2f} ms"
