@@ -744,9 +744,10 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
                 outline_every=max(2, total // OUTLINE_FRAMES),
                 row_time=_row_time(rig, info, fields))
         readout = None
-        if not rig.rolling_shutter_ms and not fields:
+        given_readout_ms = rig.rolling_shutter_ms
+        if not fields:
             readout = _measured_readout(records, loop_info, info)
-            if readout.found:
+            if given_readout_ms is None and readout.found:
                 # a rolling shutter shown by the grid: the frames measured again with
                 # each marker timed at its row (a second pass over the video)
                 # (a sensor reads its rows within one frame period at most)
@@ -793,7 +794,15 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
     if readout is not None and readout.n_frames:
         series.meta["rolling_shutter_measured_ms"] = round(1e3 * readout.readout_s, 3)
         series.meta["rolling_shutter_measured_sigma_ms"] = round(1e3 * readout.sigma_s, 3)
-        if readout.found:
+        if given_readout_ms is not None:
+            if abs(1e-3 * given_readout_ms - readout.readout_s) > READOUT_DISAGREE_Z * \
+                    readout.sigma_s:
+                series.meta["warnings"].append(
+                    f"{video_path}: the rig's rolling_shutter_ms {given_readout_ms:g} "
+                    f"disagrees with the {1e3 * readout.readout_s:.1f} +- "
+                    f"{1e3 * readout.sigma_s:.1f} ms the grid's shear under the camera's "
+                    "motion shows: the rig's is used - check it")
+        elif readout.found:
             series.meta["rolling_shutter_source"] = "measured from the grid"
             series.meta["warnings"].append(
                 f"{video_path}: the grid shears with the camera's motion as a rolling "
@@ -822,6 +831,11 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         write_debug_frames(video_path, debug_dir, debug_frames, records, series,
                            loop_info["calib"], rig)
     return series
+
+
+#: A readout given in the rig that is this many sigmas from the one the video shows is
+#: warned about (a phone's spec sheet for another mode, a typo).
+READOUT_DISAGREE_Z = 5.0
 
 
 def _measured_readout(records, loop_info, info):

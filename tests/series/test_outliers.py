@@ -59,3 +59,30 @@ def test_heavy_tailed_class_outliers_flagged_at_their_rate():
     r = draw_noise("heavy", t, 1.0, rng)
     frac = isolated_outliers(r).mean()
     assert 0.008 < frac < 0.03, f"seed {seed}: {frac:.4f} flagged"
+
+
+def test_a_glitch_whose_way_up_is_under_the_threshold_is_paired():
+    """One position fix's glitch split between x and y can leave one of its two jumps
+    just under the threshold in a coordinate (CI seed 1014755135: 4.5 sigma up, 5.6 back
+    in y): the jump over it pairs with its mate at half the threshold.  A lone jump with
+    no mate is a level kept, not a glitch."""
+    from curltrack.series.noise import OUTLIER_K, isolated_steps
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(150, 400))
+    # residuals in units of their noise sigma, here far quieter than 1: the threshold
+    # is then exactly OUTLIER_K sigma of a row difference (its scale is never below 1)
+    r = 0.1 * rng.standard_normal(n)
+    a = int(rng.integers(20, n - 60))
+    b = a + int(rng.integers(5, 30))
+    # the way up 0.8-0.9 of the threshold, the way back 1.05-1.15 of it: within the
+    # 30 % that pairs two jumps
+    up, back = rng.uniform(0.8, 0.9) * OUTLIER_K, rng.uniform(1.05, 1.15) * OUTLIER_K
+    sign = rng.choice([-1.0, 1.0])
+    r[a:b] += sign * np.sqrt(2) * (up + np.linspace(0, back - up, b - a))
+    what = f"seed {seed}: rows {a}-{b}, up {up:.2f}, back {back:.2f}"
+    assert isolated_steps(r) == [(a, b)], (what, isolated_steps(r))
+    lone = 0.1 * rng.standard_normal(n)
+    lone[a:] += sign * np.sqrt(2) * back   # a level the instrument moved to and kept
+    assert isolated_steps(lone) == [], what

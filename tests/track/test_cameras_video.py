@@ -262,3 +262,8 @@ def test_rolling_shutter_measured_when_not_given(tmp_path):
         given = track_video(video, dataclasses.replace(rig, rolling_shutter_ms=1e3 * r))
         rms["given"] = np.sqrt(np.mean(np.sum(_errors(given, truth)[0] ** 2, axis=1)))
         assert rms["measured"] <= rms["given"] + 0.3e-3, (what, rms)
+        assert not any("disagrees" in w for w in given.meta["warnings"]), what
+        # a readout in the rig far from the video's (another mode's spec, a typo) is said
+        wrong = track_video(video, dataclasses.replace(rig, rolling_shutter_ms=3e3 * r))
+        assert any("rolling_shutter_ms" in w and "disagrees" in w
+                   for w in wrong.meta["warnings"]), what
