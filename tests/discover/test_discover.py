@@ -197,9 +197,14 @@ def test_ice_slope_is_tested_on_position_only_shots_that_curl_both_ways():
     # it, and the verdict was unexplained: the candidate's estimate there was 19 % off.
     # What must hold: never another name, and a named slope is right.  'none' only where
     # the slope is not told from an instrument's jump, and says so - CI seed 2513568008:
-    # a jump explained the baseline's misfit as well and stayed in the slope's residuals)
+    # a jump explained the baseline's misfit as well and stayed in the slope's residuals
+    # - or where the slope is not supported at all: a miss, which these strengths (1-2x
+    # the white class's 90 % strength of 0.019 mm/m, README: 5 of 10 named at 2x) allow;
+    # CI seed 3489633401: the slope's drift read as a curl ending at 14.6 s, the slope
+    # not supported on held-out data, a pick blocked by the jump it leaves)
     jump = any("instrument's jump" in b for b in found.not_named_because or ())
-    assert rep.verdict in ("ice_slope", "unexplained") or (rep.verdict == "none" and jump), \
+    assert rep.verdict in ("ice_slope", "unexplained") or (
+        rep.verdict == "none" and (jump or not found.supported)), \
         f"seed {seed}: {rep.verdict}"
     if rep.verdict == "ice_slope":
         est, err = found.params["slope_x_mm_per_m"], found.params_err["slope_x_mm_per_m"]
