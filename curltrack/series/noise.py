@@ -445,17 +445,16 @@ def isolated_steps(r, k: float = OUTLIER_K, known=()) -> list[tuple[int, int]]:
     # are one position fix: a glitch's jump split between them can leave this
     # coordinate's share under the threshold on one side - CI seed 1014755135, y 4.5
     # sigma up and 5.6 back - and a lone jump would make every other a "level kept")
-    jumps = np.setdiff1d(jumps, np.asarray(list(known), int))
+    known = np.asarray(list(known), int)
+    jumps = np.setdiff1d(jumps, known)
     if not 2 <= jumps.size <= MAX_GLITCH_STEPS:
         return []
     # isolated: the rest of the series does not jump too - at half the threshold no
     # more than two others and 1 % of the rows (white noise: ~0.3 % of them; an
     # instrument whose every fix sits on a step jumps every few tenths of a second)
-    half = np.setdiff1d(np.flatnonzero(isolated_outliers(z, 0.5 * k)),
-                        np.asarray(list(known), int))
+    half = np.setdiff1d(np.flatnonzero(isolated_outliers(z, 0.5 * k)), known)
     if half.size > jumps.size + 2 + 0.01 * r.size:
         return []
-    over = set(jumps.tolist())
     out, used = [], set()
     for a, b in zip(jumps[:-1], jumps[1:]):
         if a in used or b in used:
@@ -464,7 +463,7 @@ def isolated_steps(r, k: float = OUTLIER_K, known=()) -> list[tuple[int, int]]:
         if h1 * h2 < 0 and abs(h1 + h2) <= STEP_RETURN * max(abs(h1), abs(h2)):
             out.append((int(a) + 1, int(b) + 1))
             used |= {a, b}
-    if over - used:
+    if 2 * len(out) < jumps.size:
         # a jump that does not return is a level the instrument moved to and kept (a
         # clean 10 Hz step-noise shot's theta: two jumps paired by chance around a
         # third, a "glitch" taken out and a patch named): then none is a glitch

@@ -410,10 +410,15 @@ def _row_time(rig: Rig, info, fields: bool):
     from .shutter import row_time_offsets
 
     readout_s = 1e-3 * rig.rolling_shutter_ms
-    # (OpenCV decodes turned by the rotation tag, PyAV - also for fields - does not)
-    rotated = info.decoder != "pyav" and not fields
+    rotated = _decoded_rotated(info, fields)
     return lambda pts_px, shape: row_time_offsets(pts_px, shape, readout_s,
                                                   info.rotation_deg, rotated)
+
+
+def _decoded_rotated(info, fields: bool) -> bool:
+    """Whether the decoded frames are turned by the video's rotation tag: OpenCV
+    turns them, PyAV (also for fields) does not."""
+    return info.decoder != "pyav" and not fields
 
 
 def _calibrate(image, rig, mask):
@@ -735,14 +740,17 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
 
     report = progress if callable(progress) else None
     progress = bool(progress) and report is None
+
+    def tracking_pass(frames, rig, advance):
+        return track_frames(
+            frames, rig, path=video_path,
+            progress=_counting(advance, report, total) if progress or report else None,
+            outline_every=max(2, total // OUTLINE_FRAMES),
+            row_time=_row_time(rig, info, fields))
     try:
         with threadpool_limits(limits=1, user_api="blas"), \
                 progress_bar("tracking", total, enabled=progress) as advance:
-            records, loop_info = track_frames(
-                frames, rig, path=video_path,
-                progress=_counting(advance, report, total) if progress or report else None,
-                outline_every=max(2, total // OUTLINE_FRAMES),
-                row_time=_row_time(rig, info, fields))
+            records, loop_info = tracking_pass(frames, rig, advance)
         readout = None
         given_readout_ms = rig.rolling_shutter_ms
         if not fields:
@@ -755,14 +763,9 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
                                                                 1.0 / info.fps))
                 with threadpool_limits(limits=1, user_api="blas"), \
                         progress_bar("rolling shutter", total, enabled=progress) as advance:
-                    records, loop_info = track_frames(
-                        iter_frames(video_path, start=start, end=end, exclude=exclude,
-                                    fps_override=rig.fps, **info.reading), rig,
-                        path=video_path,
-                        progress=(_counting(advance, report, total)
-                                  if progress or report else None),
-                        outline_every=max(2, total // OUTLINE_FRAMES),
-                        row_time=_row_time(rig, info, fields))
+                    records, loop_info = tracking_pass(iter_frames(
+                        video_path, start=start, end=end, exclude=exclude,
+                        fps_override=rig.fps, **info.reading), rig, advance)
         blank = _blank_lead(records) if start_frame is None else 0
         if blank:  # black / empty frames before the scene: t = 0 at the first real frame
             records, start = records[blank:], records[blank].frame
@@ -849,7 +852,7 @@ def _measured_readout(records, loop_info, info):
         return ReadoutEstimate(np.nan, np.nan, 0)
     return estimate_readout([r.t for r in good], [r.H for r in good], calib.K[:2, 2],
                             loop_info["shape"], info.rotation_deg,
-                            decoded_rotated=info.decoder != "pyav")
+                            decoded_rotated=_decoded_rotated(info, fields=False))
 
 
 def _write_verdict_frames(video_path, debug_dir, frames, rig) -> None:

@@ -146,6 +146,12 @@ def _anticonformal(A: np.ndarray) -> np.ndarray:
     return np.stack([(A[..., 0, 0] - A[..., 1, 1]) / 2, (A[..., 0, 1] + A[..., 1, 0]) / 2], -1)
 
 
+def _through(Hs: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Points ``pts`` (n, k, 2) through their own homography of ``Hs`` (n, 3, 3)."""
+    w = np.einsum("nij,nkj->nki", Hs, np.concatenate([pts, np.ones(pts.shape[:2] + (1,))], -1))
+    return w[..., :2] / w[..., 2:]
+
+
 def estimate_readout(times, homographies, centre_px, shape, rotation_deg: int = 0,
                      decoded_rotated: bool = True) -> ReadoutEstimate:
     """The readout time of a rolling shutter, from the lattice's shear under the
@@ -175,8 +181,6 @@ def estimate_readout(times, homographies, centre_px, shape, rotation_deg: int = 
     -------
     ReadoutEstimate
     """
-    from ..calib.lens import apply_h
-
     t = np.asarray(times, float)
     Hs = np.asarray(homographies, float)
     c = np.asarray(centre_px, float)
@@ -186,7 +190,7 @@ def estimate_readout(times, homographies, centre_px, shape, rotation_deg: int = 
     pts = np.array([c, c + (1.0, 0.0), c + (0.0, 1.0)])
     f = sensor_row_fraction(pts, shape, rotation_deg, decoded_rotated)
     grad = np.array([f[1] - f[0], f[2] - f[0]])
-    ice = np.array([apply_h(H, pts) for H in Hs])                    # (n, 3, 2)
+    ice = _through(Hs, np.broadcast_to(pts, (n, 3, 2)))              # (n, 3, 2)
     J = np.stack([ice[:, 1] - ice[:, 0], ice[:, 2] - ice[:, 0]], -1)  # (n, 2, 2)
     # (a lattice whose frame is mirrored against the image's)
     J = np.where((np.linalg.det(J) < 0)[:, None, None], J * np.array([[1.0], [-1.0]]), J)
@@ -195,10 +199,8 @@ def estimate_readout(times, homographies, centre_px, shape, rotation_deg: int = 
     M = np.linalg.solve(conf, J)
     # the image's velocity at the centre: where the ice under it is a frame before and after
     Hinv = np.linalg.inv(Hs)
-    at = np.array([apply_h(Hi, ice[1:-1, 0][k][None])[0] for k, Hi in
-                   enumerate(Hinv[:-2])])
-    after = np.array([apply_h(Hi, ice[1:-1, 0][k][None])[0] for k, Hi in
-                      enumerate(Hinv[2:])])
+    centre_ice = ice[1:-1, :1]
+    at, after = _through(Hinv[:-2], centre_ice)[:, 0], _through(Hinv[2:], centre_ice)[:, 0]
     dt = t[2:] - t[:-2]
     vel = (after - at) / dt[:, None]
     near = dt <= 2.5 * np.median(dt)  # (neighbours across a loss: no velocity)
