@@ -407,6 +407,26 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
     return np.flatnonzero(ok)
 
 
+def _refuse_off_path(records, t, centre, ok, field, pix_xy) -> None:
+    """Rows off the rock's smooth path are not measured, in place (``ok``, ``centre``).
+
+    A row that :func:`~.scatter.path_scatter` leaves out of the scatter - over
+    :data:`~.scatter.CLIP` robust sigmas off a smooth path through its neighbours, in the
+    lattice frame - is a failed measurement: a rock's position cannot jump.  Kept, such
+    rows were ``ok`` under a sigma they missed by 5-7x, and the first of them moved the
+    origin, so every row (a random pole-mounted action clip: two rows 7 and 3.6 mm off
+    beside a frame whose grid was lost, every row then 1.6 mm off under sigma 0.8 mm).
+    """
+    from .scatter import CLIP, path_scatter
+
+    off = path_scatter(np.where(ok, t, np.nan), centre, pix_xy, runs=field)["off_path"]
+    for i in np.flatnonzero(off):
+        records[i].status = (f"off the rock's smooth path by over {CLIP:g} robust sigmas "
+                             "(a failed grid or marker fit: a rock cannot jump)")
+    ok &= ~off
+    centre[off] = np.nan
+
+
 def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None) -> Series:
     """Assemble the Series (see :func:`curltrack.track.track_video` for the columns)."""
     n = len(records)
@@ -518,14 +538,16 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         half = np.where(fld == 0, 0.5, np.where(fld == 1, -0.5, 0.0))[:, None]
         pull_xy = field_offset_along(t, centre, fld, ok)
         centre = centre + half * pull_xy
-    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
-                         angle_rows=uncertain_cell & np.isfinite(phi))
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
     L = np.array([[m.x_m, m.y_m] for m in rig.markers])
     lever = np.sqrt(np.sum((L - L.mean(0)) ** 2))
     sig_m = np.array([r.sigma_m for r in records])
     sig_g = np.array([r.grid_sigma_m for r in records])
+    pix_xy = est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2)
+    _refuse_off_path(records, t, centre, ok, fld, pix_xy)
+    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
+                         angle_rows=uncertain_cell & np.isfinite(phi))
     sig_r = np.array([r.grid_residual_m for r in records])
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
     sigma_xy = np.hypot(est.k * np.sqrt((SIGMA_STAT_SCALE ** 2 * (sig_m ** 2 / M + sig_g ** 2))
@@ -665,7 +687,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     cal = calibrate_sigma(
         t, np.column_stack([shot["x"], shot["y"]]), shot["theta"], ok,
         fld, stops,
-        pix_xy=est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2), pix_theta=sig_m / max(lever, 1e-6),
+        pix_xy=pix_xy, pix_theta=sig_m / max(lever, 1e-6),
         sys_xy=np.hypot(sigma_parallax, off_xy), sys_theta=off_theta,
         # (the origin's own fit error where it is extrapolated or its frames disagree:
         # what the warning above says sigma_xy includes)

@@ -95,14 +95,16 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
     dict
         ``scale`` (sqrt of sum z^2 / sum (1 - h) over the kept rows; NaN when too few
         rows), ``dof`` (the degrees of freedom behind it: rows - spline parameters,
-        summed over columns), ``n`` (rows used), ``clipped`` (rows left out as wrong).
+        summed over columns), ``n`` (rows used), ``clipped`` (rows left out as wrong)
+        and ``off_path`` ((N,) bool: those rows).
     """
     t = np.asarray(t, float)
     q = np.asarray(q, float).reshape(len(t), -1)
     sig = np.asarray(sigma, float)
     use = np.isfinite(t) & np.isfinite(q).all(axis=1) & np.isfinite(sig) & (sig > 0)
     runs = np.zeros(len(t), int) if runs is None else np.asarray(runs)
-    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0)
+    off_path = np.zeros(len(t), bool)
+    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0, off_path=off_path)
     num = den = 0.0
     n_used = clipped = 0
     for lab in np.unique(runs[use]):
@@ -125,7 +127,11 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
                 if res is None:
                     break
                 z, h, p = res
-                zn = z / np.sqrt(np.clip(1 - h, 0.05, None))[:, None]
+                # a fitted row's residual has variance 1 - h, a left-out row's (its
+                # prediction from the others) 1 + h: with 1 - h, a row left out beside
+                # a run's end, whose basis no kept row then fixes (h > 1), was judged
+                # 10x too far off and never came back
+                zn = z / np.sqrt(np.where(keep, np.clip(1 - h, 0.05, None), 1 + h))[:, None]
                 s = robust_sigma(zn[keep], centre=0.0)
                 new = (np.abs(zn) <= CLIP * max(s, 1e-12)).all(axis=1)
                 if (new == keep).all():
@@ -142,6 +148,7 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
             den += float(m * (np.sum(1 - h[keep])))
             n_used += int(keep.sum())
             clipped += int((~keep).sum())
+            off_path[seg[~keep]] = True
     if den > 0:
         out.update(scale=float(np.sqrt(num / den)), dof=den, n=n_used, clipped=clipped)
     return out

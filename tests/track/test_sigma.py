@@ -91,6 +91,45 @@ def test_path_scatter_measures_the_frame_to_frame_noise():
     assert np.std(scales) < 0.12, f"seed {seed}: {np.std(scales):.3f}"
 
 
+def test_rows_off_the_smooth_path_are_named_and_only_they():
+    """``path_scatter`` names the rows it leaves out (``off_path``; the tracker refuses
+    them: a rock's position cannot jump).  Rows put 12-40 sigma off a random stopping
+    path (at random places away from a run's first and last 8 rows, whose own values
+    set their fit: there a row is not judged as well; possibly neighbours; in either
+    field) are named, in 20 draws of noise; a clean row is named by chance (a Gaussian
+    row beyond ~4.3 sigma, after the robust scale and the leverage) in under 1e-3 of
+    the rows."""
+    from curltrack.track.scatter import path_scatter
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    false, rows = [], 0
+    for _ in range(20):
+        fps = float(rng.choice([30.0, 59.94, 60.0]))
+        n = int(rng.integers(90, 300))
+        t = np.arange(n) / fps
+        ts = rng.uniform(0.5, 1.2) * t[-1]
+        a = rng.uniform(0.05, 0.3)
+        x = np.where(t < ts, a * ts * t - 0.5 * a * t ** 2, 0.5 * a * ts ** 2)
+        y = -0.01 * (ts - np.minimum(t, ts)) ** 3
+        n_fields = int(rng.choice([1, 2]))
+        field = np.arange(n) % n_fields
+        sig = rng.uniform(2e-4, 1e-3) * (1 + rng.random(n))
+        q = np.column_stack([x, y]) + sig[:, None] * rng.standard_normal((n, 2))
+        clean = path_scatter(t, q, sig, runs=field)
+        false += list(np.flatnonzero(clean["off_path"]))
+        edge = 8 * n_fields
+        bad = rng.choice(np.arange(edge, n - edge), size=int(rng.integers(1, 4)), replace=False)
+        direction = rng.normal(size=(len(bad), 2))
+        direction /= np.hypot(*direction.T)[:, None]
+        q[bad] += rng.uniform(12, 40, (len(bad), 1)) * sig[bad, None] * direction
+        named = set(np.flatnonzero(path_scatter(t, q, sig, runs=field)["off_path"]))
+        assert named >= set(bad), f"seed {seed}: named {sorted(named)}, put off {sorted(bad)}"
+        false += list(named - set(bad))
+        rows += 2 * n
+    assert len(false) <= max(2, 1e-3 * rows), f"seed {seed}: clean rows named: {false}"
+
+
 @pytest.mark.slow
 def test_sigma_honest_on_a_random_camera_setup(tmp_path):
     """A set-up of the camera sweep (kind and artefacts at random), tracked to <= 2 mm:
