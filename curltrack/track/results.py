@@ -407,26 +407,6 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
     return np.flatnonzero(ok)
 
 
-def _refuse_off_path(records, t, centre, ok, field, pix_xy) -> None:
-    """Rows off the rock's smooth path are not measured, in place (``ok``, ``centre``).
-
-    A row that :func:`~.scatter.path_scatter` leaves out of the scatter - over
-    :data:`~.scatter.CLIP` robust sigmas off a smooth path through its neighbours, in the
-    lattice frame - is a failed measurement: a rock's position cannot jump.  Kept, such
-    rows were ``ok`` under a sigma they missed by 5-7x, and the first of them moved the
-    origin, so every row (a random pole-mounted action clip: two rows 7 and 3.6 mm off
-    beside a frame whose grid was lost, every row then 1.6 mm off under sigma 0.8 mm).
-    """
-    from .scatter import CLIP, path_scatter
-
-    off = path_scatter(np.where(ok, t, np.nan), centre, pix_xy, runs=field)["off_path"]
-    for i in np.flatnonzero(off):
-        records[i].status = (f"off the rock's smooth path by over {CLIP:g} robust sigmas "
-                             "(a failed grid or marker fit: a rock cannot jump)")
-    ok &= ~off
-    centre[off] = np.nan
-
-
 def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None) -> Series:
     """Assemble the Series (see :func:`curltrack.track.track_video` for the columns)."""
     n = len(records)
@@ -545,7 +525,6 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sig_m = np.array([r.sigma_m for r in records])
     sig_g = np.array([r.grid_sigma_m for r in records])
     pix_xy = est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2)
-    _refuse_off_path(records, t, centre, ok, fld, pix_xy)
     shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
                          angle_rows=uncertain_cell & np.isfinite(phi))
     sig_r = np.array([r.grid_residual_m for r in records])

@@ -92,8 +92,8 @@ def test_path_scatter_measures_the_frame_to_frame_noise():
 
 
 def test_rows_off_the_smooth_path_are_named_and_only_they():
-    """``path_scatter`` names the rows it leaves out (``off_path``; the tracker refuses
-    them: a rock's position cannot jump).  Rows put 12-40 sigma off a random stopping
+    """``path_scatter`` names the rows it leaves out of the scale (``off_path``).  Rows
+    put 12-40 sigma off a random stopping
     path (at random places away from a run's first and last 8 rows, whose own values
     set their fit: there a row is not judged as well; possibly neighbours; in either
     field) are named, in 20 draws of noise; a clean row is named by chance (a Gaussian
@@ -182,3 +182,4 @@ def test_sigma_honest_on_a_random_camera_setup(tmp_path):
     sig = np.r_[s.sigma_xy.to_numpy()[ok], s.sigma_xy.to_numpy()[ok]]
     z = float(np.sqrt(np.mean((e / sig) ** 2)))
     assert 0.7 <= z <= 1.4, f"{what}: RMS of position error/sigma {z:.2f}"
+
