@@ -387,6 +387,7 @@ def drop_isolated_outliers(model: JointModel, fit) -> list[str]:
         drop[(j, c)] = set(rows[isolated_outliers(z)].tolist())
         seen[(j, c)] = (rows, z, sl, isolated_steps(z))
     for (j, c), (rows, z, sl, boxes) in seen.items():
+        s = model.shots[j]
         other = {"x": "y", "y": "x"}.get(c)
         if not boxes and (j, other) in seen and seen[(j, other)][3]:
             # x and y are one position fix: the other's glitch explains its jumps here
@@ -397,7 +398,6 @@ def drop_isolated_outliers(model: JointModel, fit) -> list[str]:
             known = {int(np.searchsorted(rows, e)) - 1 for e in edges} - {-1}
             boxes = isolated_steps(z, known=known)
         for a, b in boxes:
-            s = model.shots[j]
             box = rows[a:b]
             (glitched.setdefault(j, set()) if c in ("x", "y") else drop[(j, c)]).update(
                 box.tolist())

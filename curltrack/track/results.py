@@ -518,15 +518,14 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         half = np.where(fld == 0, 0.5, np.where(fld == 1, -0.5, 0.0))[:, None]
         pull_xy = field_offset_along(t, centre, fld, ok)
         centre = centre + half * pull_xy
+    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
+                         angle_rows=uncertain_cell & np.isfinite(phi))
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
     L = np.array([[m.x_m, m.y_m] for m in rig.markers])
     lever = np.sqrt(np.sum((L - L.mean(0)) ** 2))
     sig_m = np.array([r.sigma_m for r in records])
     sig_g = np.array([r.grid_sigma_m for r in records])
-    pix_xy = est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2)
-    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
-                         angle_rows=uncertain_cell & np.isfinite(phi))
     sig_r = np.array([r.grid_residual_m for r in records])
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
     sigma_xy = np.hypot(est.k * np.sqrt((SIGMA_STAT_SCALE ** 2 * (sig_m ** 2 / M + sig_g ** 2))
@@ -666,7 +665,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     cal = calibrate_sigma(
         t, np.column_stack([shot["x"], shot["y"]]), shot["theta"], ok,
         fld, stops,
-        pix_xy=pix_xy, pix_theta=sig_m / max(lever, 1e-6),
+        pix_xy=est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2), pix_theta=sig_m / max(lever, 1e-6),
         sys_xy=np.hypot(sigma_parallax, off_xy), sys_theta=off_theta,
         # (the origin's own fit error where it is extrapolated or its frames disagree:
         # what the warning above says sigma_xy includes)
