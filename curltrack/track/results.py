@@ -57,7 +57,12 @@ SIGMA_SLOW_RATIO = 1.0
 #: against the truth on rendered 720x480 draws (ladder and hand-held, 2 s at 59.94 Hz):
 #: the mean angle error's variance left over theta0's sigma was 0.15 x (23 interlaced
 #: draws measured per field) and 0.2 x (24 progressive) the random variance; theta0's
-#: sigma alone was 1.4-1.6x too small (one draw 4.6 sigma off).
+#: sigma alone was 1.4-1.6x too small (one draw 4.6 sigma off).  (Those interlaced
+#: draws had theta0's noise estimated over the interleaved fields, 2.4x too small; it
+#: is now estimated field by field - :func:`~.shotframe._frame_noise` - and on 18
+#: fresh draws the mean angle error over theta0's sigma has RMS 1.36, the mean of the
+#: rows' own error included; the per-row part left unseen on a camera that follows
+#: the rock, std of error over the random sigma 1.2-1.3, is what this term still holds.)
 THETA0_SLOW_RATIO = 0.2
 #: An origin (the rock at t = 0) whose fit is uncertain by more than this (m) is warned
 #: about, and its fit's own error is then every row's (the bench hand-held: its first
@@ -519,7 +524,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         pull_xy = field_offset_along(t, centre, fld, ok)
         centre = centre + half * pull_xy
     shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
-                         angle_rows=uncertain_cell & np.isfinite(phi))
+                         angle_rows=uncertain_cell & np.isfinite(phi),
+                         field=fld if (fld >= 0).any() else None)
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
     L = np.array([[m.x_m, m.y_m] for m in rig.markers])
