@@ -97,6 +97,13 @@ class VideoInfo:
     streams : str
         "" for a file with one video stream; else which of its video streams is measured
         (:func:`main_stream`: the largest picture).
+    time_tick_s : float
+        The resolution of the container's timestamps (s; its stream time base), 0 when
+        unknown.  Over :data:`COARSE_TICK_S` the frame times are read by
+        :class:`FrameClock` (Matroska and WebM store milliseconds).
+    times_on_grid : bool
+        Such coarse timestamps are a constant frame rate's, rounded: the frames' times
+        are put back on its grid (:func:`_time_grid`).
     """
 
     path: str
@@ -116,6 +123,8 @@ class VideoInfo:
     fields_from_content: str = ""
     colour_per_field: bool = True
     streams: str = ""
+    time_tick_s: float = 0.0
+    times_on_grid: bool = False
 
     @property
     def content_field_order(self) -> str | None:
@@ -146,6 +155,11 @@ class VideoInfo:
                         "pixels before measuring)")
         if self.streams:
             rot += f"; {self.streams}"
+        if self.time_tick_s > COARSE_TICK_S:
+            rot += (f"; timestamps in {1e3 * self.time_tick_s:.3g} ms steps ("
+                    + ("a constant frame rate's, rounded: times put back on its grid)"
+                       if self.times_on_grid else
+                       "not on one frame rate's grid: kept as they are, to that step)"))
         fmt = self.codec_name or self.codec or "?"
         return (f"{fmt} in {self.container.split(',')[0] or '?'}, {self.width}x{self.height},"
                 f" {self.fps:.3f} fps, {scan}{rot}; decoded by "
@@ -237,6 +251,89 @@ def main_stream(container):
         or list(container.streams.video)
     return max(streams, key=lambda st: (st.codec_context.width or 0)
                * (st.codec_context.height or 0) * 2 - st.index)
+
+
+#: Timestamps stored in steps coarser than this (s) are rounded by the container, not
+#: measured: Matroska and WebM store whole milliseconds, which put a constant 30 fps
+#: stream's frames up to 0.5 ms off their times (1 mm at 2 m/s).  MP4 and MPEG-TS
+#: (1/90000 s, 1/15360 s...) keep them to a few microseconds.
+COARSE_TICK_S = 1e-4
+
+
+class FrameClock:
+    """Frame times (s) from a container's timestamps, read to their resolution.
+
+    Where the timestamps are rounded to a coarse tick (``tick_s`` over
+    :data:`COARSE_TICK_S`), a frame whose timestamp lies within half a tick of the frame
+    rate's grid (``phase_s`` + whole frame periods ``1 / fps``) is given the grid's time:
+    the rounding is undone and a constant rate's frames are exactly on its grid.  A
+    frame farther off than the rounding explains (a variable frame rate's) keeps its own
+    timestamp.  Fine ticks, or no phase, pass the timestamps through unchanged.
+
+    Parameters
+    ----------
+    fps : float
+        The container's frame rate (frames/s).
+    tick_s : float
+        The timestamps' resolution (s); 0 when unknown.
+    phase_s : float or None
+        The grid's phase (s): a time on it (:func:`_time_grid`).
+    """
+
+    def __init__(self, fps: float, tick_s: float, phase_s: float | None):
+        self.period = 1.0 / float(fps) if fps and fps > 0 else 0.0
+        on = tick_s > COARSE_TICK_S and phase_s is not None and self.period > 0
+        self.half = 0.5 * float(tick_s) + 1e-9 if on else 0.0
+        self.phase = float(phase_s) if on else 0.0
+
+    def __call__(self, raw: float) -> float:
+        t = float(raw)
+        if self.half > 0:
+            grid = self.phase + round((t - self.phase) / self.period) * self.period
+            if abs(t - grid) <= self.half:
+                return grid
+        return t
+
+
+#: packets whose timestamps place the frame rate's grid (:func:`_time_grid`)
+GRID_PACKETS = 600
+
+
+@functools.lru_cache(maxsize=32)
+def _time_grid(path: str, size: int, mtime_ns: int) -> tuple[float, float | None]:
+    """(tick, phase) of the main video stream's timestamps: the time base (s; 0 without
+    PyAV or when unreadable) and, for a coarse one (:data:`COARSE_TICK_S`), the phase
+    of the frame rate's grid that its first :data:`GRID_PACKETS` packets' times are
+    rounded from (s; None when they are not all within half a tick of one grid: a
+    variable frame rate)."""
+    try:
+        import av
+    except ImportError:
+        return 0.0, None
+    try:
+        with av.open(path) as c:
+            st = main_stream(c)
+            tick = float(st.time_base) if st.time_base else 0.0
+            rate = float(st.average_rate or st.guessed_rate or 0)
+            if tick <= COARSE_TICK_S or rate <= 0:
+                return tick, None
+            times = []
+            for pkt in c.demux(st):
+                if pkt.pts is not None:
+                    times.append(float(pkt.pts * st.time_base))
+                if len(times) >= GRID_PACKETS:
+                    break
+    except Exception:  # noqa: BLE001 - OpenCV's own checks report an unreadable file
+        return 0.0, None
+    if len(times) < 3:
+        return tick, None
+    times = np.sort(times)
+    period = 1.0 / rate
+    r = times - times[0]
+    r = r - np.round(r / period) * period
+    phase = times[0] + 0.5 * (r.max() + r.min())
+    # (rounded from one grid: every time within half a tick of it)
+    return tick, (float(phase) if np.ptp(r) <= tick + 1e-9 else None)
 
 
 def _av_probe(path) -> dict:
@@ -574,6 +671,13 @@ def _av_frame_count(path: str, size: int, mtime_ns: int) -> int:
     return n
 
 
+def _reaches_end(path: str, first: float, fps: float, n: int) -> bool:
+    """Whether FFmpeg's last frame of the stream is at the end that ``n`` frames at
+    ``fps`` from ``first`` announce (within 1.5 frames)."""
+    last = _av_last_time(path, first)
+    return last is not None and abs((last - first) * fps + 1 - n) <= 1.5
+
+
 @functools.lru_cache(maxsize=32)
 def _offset_frame_count(path: str, size: int, mtime_ns: int, first: float, fps: float,
                         n: int) -> int | None:
@@ -692,18 +796,26 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
                 # OpenCV cannot seek in every container (MPEG-TS: AVCHD camcorders,
                 # broadcast recorders): the frames FFmpeg decodes say whether they are
                 # all there
-                if abs(_av_frame_count(str(path), *_file_stamp(path)) - n) > 1:
+                n_av = _av_frame_count(str(path), *_file_stamp(path))
+                if 0 < n_av < n - 1 and _reaches_end(str(path), first, fps, n):
+                    # a container that stores no frame count (Matroska, WebM) announces
+                    # its duration x the rate: frames dropped from that grid are not
+                    # missing from the file's end
+                    n = n_av
+                elif abs(n_av - n) > 1:
                     raise VideoError(f"video is truncated: the container announces {n} "
                                      "frames but the last one cannot be decoded", path=path,
                                      where=f"frame {n - 1}")
     finally:
         cap.release()
+    tick, phase = _time_grid(str(path), *_file_stamp(path))
     extra = {k: av_info[k] for k in ("container", "codec_name", "interlaced",
                                      "top_field_first", "rotation_deg", "pixel_aspect",
                                      "colour_per_field")
              if k in av_info}
     return VideoInfo(str(path), n, fps, w, h, codec, n / fps, decoder=decoder,
-                     fields_from_content=from_content, streams=streams, **extra)
+                     fields_from_content=from_content, streams=streams,
+                     time_tick_s=tick, times_on_grid=phase is not None, **extra)
 
 
 def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
@@ -775,6 +887,7 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
         stop = n if end is None else min(int(end), n) if n > 0 else int(end)
         t0_ms = None
         prev_ms = -np.inf
+        clock = FrameClock(fps, *_time_grid(str(path), *_file_stamp(path)))
         index = 0
         while stop <= 0 or index < stop:
             if index < start or index in exclude:
@@ -795,6 +908,7 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
             # Container timestamps where meaningful (strictly increasing); else index/fps.
             if not np.isfinite(ms) or ms <= prev_ms:
                 ms = prev_ms + 1000.0 / fps if np.isfinite(prev_ms) else index * 1000.0 / fps
+            ms = 1000.0 * clock(ms / 1000.0)
             prev_ms = ms
             if index == start:
                 t0_ms = ms
@@ -898,6 +1012,7 @@ def _iter_pyav(path, start, end, exclude, fps_override, fields, field_order=None
         t0 = None
         index = -1
         prev = -np.inf
+        clock = FrameClock(fps, *_time_grid(str(path), *_file_stamp(path)))
         try:
             for fr in container.decode(st):
                 index += 1
@@ -906,6 +1021,7 @@ def _iter_pyav(path, start, end, exclude, fps_override, fields, field_order=None
                 t = float(fr.time) if fr.time is not None else np.nan
                 if not np.isfinite(t) or t <= prev:
                     t = prev + 1.0 / fps if np.isfinite(prev) else index / fps
+                t = clock(t)
                 prev = t
                 if index < start or index in exclude:
                     if index == start:

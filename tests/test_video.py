@@ -1,6 +1,8 @@
 """The frame reader: exact indices and container times, ranges, and clear errors."""
 
 import io
+from fractions import Fraction
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -116,7 +118,6 @@ def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96), live=False,
     be seeked to its end), in container ``fmt``, the first frame at ``start_s``;
     ``live``: written as a stream, with no duration in the header; ``preview``: after a
     first video stream of black frames at half the size (a camera's preview)."""
-    from fractions import Fraction
 
     import av
 
@@ -342,3 +343,61 @@ def test_colour_layout_of_woven_fields_is_read_from_the_content(tmp_path):
         assert info.colour_per_field is fm.colour_per_field, (what, info)
     _woven_clip(tmp_path / "grey.mp4", rng, shift_px=shift, order=order)
     assert not probe_video(tmp_path / "grey.mp4").colour_per_field, what
+
+
+def _write_ms_times(path, times_s, fps):
+    """A Matroska file whose frames carry ``times_s`` rounded to the millisecond, as
+    Matroska and WebM store them."""
+    import av
+
+    with av.open(str(path), "w", format="matroska") as out:
+        st = out.add_stream("libx264", rate=Fraction(fps).limit_denominator(1001))
+        st.width, st.height, st.pix_fmt = 64, 48, "yuv420p"
+        # (the encoder keeps each frame's own time only in a time base that fine)
+        st.codec_context.time_base = Fraction(1, 1000)
+        for i, t in enumerate(times_s):
+            fr = av.VideoFrame.from_ndarray(np.full((48, 64, 3), (7 * i) % 250, np.uint8),
+                                            format="rgb24")
+            fr.time_base = Fraction(1, 1000)
+            fr.pts = int(round(1000 * t))
+            for pkt in st.encode(fr):
+                out.mux(pkt)
+        for pkt in st.encode():
+            out.mux(pkt)
+
+
+def test_millisecond_timestamps_are_read_to_the_frame_rate():
+    """Matroska rounds times to 1 ms, which put a constant-rate stream's frames up to
+    0.5 ms off theirs (1 mm at 2 m/s).  A constant rate (25-60 fps, frames dropped or
+    not, the first frame at 0 or later) is read back exactly, by the decoder ``track``
+    uses and by FFmpeg; times that jitter
+    by more than the rounding (a phone's variable rate) are kept to the millisecond."""
+    import tempfile
+
+    from curltrack.video import iter_frames, probe_video
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    with tempfile.TemporaryDirectory() as tmp:
+        for jitter in (False, True):
+            fps = float(rng.choice([25.0, 30000 / 1001, 30.0, 50.0, 60000 / 1001, 60.0]))
+            k = np.arange(int(rng.integers(40, 90)))
+            k = np.sort(np.unique(np.r_[0, k[rng.random(k.size) > rng.uniform(0, 0.1)]]))
+            true = float(rng.choice([0.0, rng.uniform(0, 2)])) + k / fps
+            if jitter:
+                true = true + rng.choice([-1, 1], k.size) * rng.uniform(1.5e-3, 3e-3, k.size)
+            path = Path(tmp) / f"t{int(jitter)}.mkv"
+            _write_ms_times(path, true, fps)
+            info = probe_video(path)
+            what = f"seed {seed}, {fps:.3f} fps, jitter {jitter}: {info.describe()}"
+            assert info.time_tick_s == pytest.approx(1e-3) and info.times_on_grid != jitter, what
+            for decoder in {info.decoder, "pyav"}:  # (what track reads it with, and FFmpeg)
+                t = np.array([f.t for f in iter_frames(path, decoder=decoder)])
+                # (every frame read: frames dropped from the grid are not a truncated
+                # file's missing end)
+                assert t.size == k.size, (what, decoder, t.size)
+                err = np.abs(t - (true - true[0]))
+                if jitter:  # (each time and the first rounded: 1 ms at most)
+                    assert err.max() <= 1e-3 + 1e-9, (what, decoder, err.max())
+                else:
+                    assert err.max() < 1e-6, (what, decoder, err.max())

@@ -137,7 +137,7 @@ def white_sigma(q, ok=None, min_diffs: int = 1) -> float:
 
 
 def estimate_noise(frame, q, *, t=None, t_stop=None, name="<series>", field="x",
-                   floor=0.0) -> Noise:
+                   floor=0.0, rho_max: float = RHO_MAX) -> Noise:
     """Estimate the AR(1) measurement noise of one coordinate from its second differences.
 
     Parameters
@@ -153,6 +153,8 @@ def estimate_noise(frame, q, *, t=None, t_stop=None, name="<series>", field="x",
     floor : float
         Lower bound for ``sigma`` (a perfectly noiseless series would otherwise give
         zero and make every residual infinitely significant).
+    rho_max : float
+        Largest ``rho`` fitted (default :data:`RHO_MAX`).
 
     Returns
     -------
@@ -183,11 +185,12 @@ def estimate_noise(frame, q, *, t=None, t_stop=None, name="<series>", field="x",
     # variogram of lag-k second differences: s^2 (6 - 8 rho^k + 2 rho^2k); least squares
     # in log over the rho grid, s^2 solved in closed form for each rho.
     k = np.arange(1, len(logv) + 1)[:, None]
-    logm = np.log(6.0 - 8.0 * _RHO_GRID[None, :] ** k + 2.0 * _RHO_GRID[None, :] ** (2 * k))
+    grid = _RHO_GRID[_RHO_GRID <= rho_max + 1e-12]
+    logm = np.log(6.0 - 8.0 * grid[None, :] ** k + 2.0 * grid[None, :] ** (2 * k))
     logs2 = (logv[:, None] - logm).mean(axis=0)
     cost = ((logv[:, None] - logm - logs2) ** 2).sum(axis=0)
     best = int(np.argmin(cost)) if len(logv) > 1 else 0
-    rho = float(_RHO_GRID[best])
+    rho = float(grid[best])
     if rho < 0.1:
         rho = 0.0
         sigma2 = np.exp(logv - np.log(6.0)).mean()
