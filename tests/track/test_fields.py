@@ -77,6 +77,10 @@ def weave_interlaced(src, dst, top_first=True, crf=18, flagged=True, shared_colo
             st = out.add_stream("libx264", rate=rate or Fraction(30000, 1001))
             st.height, st.width = h, w
             st.pix_fmt = "yuv420p"
+            # (x264 on several threads wrote different bytes from one input depending
+            # on what the process had run before: CI and this machine drew different
+            # clips from one seed; on one thread the clip is the seed's alone)
+            st.codec_context.thread_count = 1
             st.options = ({"flags": "+ilme+ildct", "crf": str(crf),
                            "x264-params": "tff=1" if top_first else "bff=1"} if flagged
                           else {"crf": str(crf)})
