@@ -113,11 +113,12 @@ class _Pipe(io.RawIOBase):
 
 
 def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96), live=False,
-              preview=False):
+              preview=False, times_s=None):
     """:func:`_write`'s frames as H.264 through FFmpeg (one keyframe: a stream that cannot
     be seeked to its end), in container ``fmt``, the first frame at ``start_s``;
     ``live``: written as a stream, with no duration in the header; ``preview``: after a
-    first video stream of black frames at half the size (a camera's preview)."""
+    first video stream of black frames at half the size (a camera's preview);
+    ``times_s``: the frames' own times instead (n of them; irregular ones kept)."""
 
     import av
 
@@ -130,12 +131,17 @@ def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96), live=False,
         st = out.add_stream("libx264", rate=rate)
         st.width, st.height, st.pix_fmt = *size, "yuv420p"
         st.options = {"crf": "10", "g": "1000"}
-        tb = 1 / rate
+        if times_s is not None:
+            # (the encoder keeps each frame's own time only in a time base that fine)
+            st.codec_context.time_base = Fraction(1, 90000)
+        else:
+            times_s = start_s + np.arange(n) / rate
         for i in range(n):
-            fr = av.VideoFrame.from_ndarray(np.full((size[1], size[0], 3), 10 + 10 * i,
-                                                    np.uint8), format="rgb24")
+            fr = av.VideoFrame.from_ndarray(np.full((size[1], size[0], 3),
+                                                    (10 + 10 * i) % 250, np.uint8),
+                                            format="rgb24")
             fr.time_base = Fraction(1, 90000)
-            fr.pts = int(round((start_s + i * tb) * 90000))
+            fr.pts = int(round(float(times_s[i]) * 90000))
             for pkt in st.encode(fr):
                 out.mux(pkt)
             if small is not None:
@@ -345,27 +351,6 @@ def test_colour_layout_of_woven_fields_is_read_from_the_content(tmp_path):
     assert not probe_video(tmp_path / "grey.mp4").colour_per_field, what
 
 
-def _write_ms_times(path, times_s, fps):
-    """A Matroska file whose frames carry ``times_s`` rounded to the millisecond, as
-    Matroska and WebM store them."""
-    import av
-
-    with av.open(str(path), "w", format="matroska") as out:
-        st = out.add_stream("libx264", rate=Fraction(fps).limit_denominator(1001))
-        st.width, st.height, st.pix_fmt = 64, 48, "yuv420p"
-        # (the encoder keeps each frame's own time only in a time base that fine)
-        st.codec_context.time_base = Fraction(1, 1000)
-        for i, t in enumerate(times_s):
-            fr = av.VideoFrame.from_ndarray(np.full((48, 64, 3), (7 * i) % 250, np.uint8),
-                                            format="rgb24")
-            fr.time_base = Fraction(1, 1000)
-            fr.pts = int(round(1000 * t))
-            for pkt in st.encode(fr):
-                out.mux(pkt)
-        for pkt in st.encode():
-            out.mux(pkt)
-
-
 def test_millisecond_timestamps_are_read_to_the_frame_rate():
     """Matroska rounds times to 1 ms, which put a constant-rate stream's frames up to
     0.5 ms off theirs (1 mm at 2 m/s).  A constant rate (25-60 fps, frames dropped or
@@ -386,8 +371,9 @@ def test_millisecond_timestamps_are_read_to_the_frame_rate():
             true = float(rng.choice([0.0, rng.uniform(0, 2)])) + k / fps
             if jitter:
                 true = true + rng.choice([-1, 1], k.size) * rng.uniform(1.5e-3, 3e-3, k.size)
-            path = Path(tmp) / f"t{int(jitter)}.mkv"
-            _write_ms_times(path, true, fps)
+            # (Matroska stores the times to the millisecond)
+            path = _write_av(Path(tmp) / f"t{int(jitter)}.mkv", k.size, fps, fmt="matroska",
+                             size=(64, 48), times_s=true)
             info = probe_video(path)
             what = f"seed {seed}, {fps:.3f} fps, jitter {jitter}: {info.describe()}"
             assert info.time_tick_s == pytest.approx(1e-3) and info.times_on_grid != jitter, what

@@ -59,9 +59,9 @@ SIGMA_SLOW_RATIO = 1.0
 #: draws measured per field) and 0.2 x (24 progressive) the random variance; theta0's
 #: sigma alone was 1.4-1.6x too small (one draw 4.6 sigma off).  (Those interlaced
 #: draws had theta0's noise estimated over the interleaved fields, 2.4x too small; it
-#: is now estimated field by field - :func:`~.shotframe._frame_noise` - and on 18
-#: fresh draws the mean angle error over theta0's sigma has RMS 1.36, the mean of the
-#: rows' own error included; the per-row part left unseen on a camera that follows
+#: is now estimated field by field - :func:`~.shotframe._frame_noise` - and over 79
+#: draws the mean angle error over theta0's sigma has RMS 1.17, the mean of the rows'
+#: own error included; the per-row part left unseen on a camera that follows
 #: the rock, std of error over the random sigma 1.2-1.3, is what this term still holds.)
 THETA0_SLOW_RATIO = 0.2
 #: An origin (the rock at t = 0) whose fit is uncertain by more than this (m) is warned
