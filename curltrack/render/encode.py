@@ -100,6 +100,44 @@ class _CvWriter:
         self.w.release()
 
 
+def field_i420(rows_bgr: np.ndarray, parity: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One field's own rows (BGR uint8, h/2 x w; ``parity`` 0 = the top field) as
+    interlaced 4:2:0 records them: (Y (h/2 x w), U, V (h/4 x w/2 each)).
+
+    FFmpeg's BGR -> YUV conversion (chroma centred between the field's luma rows 2k and
+    2k + 1), the chroma then moved to where interlaced 4:2:0 samples it
+    (:data:`curltrack.video.FIELD_CHROMA_SITE`).
+    """
+    import av
+
+    from ..video import FIELD_CHROMA_SITE, shift_rows
+
+    hf, w = rows_bgr.shape[:2]
+    a = av.VideoFrame.from_ndarray(np.ascontiguousarray(rows_bgr),
+                                   format="bgr24").reformat(format="yuv420p").to_ndarray()
+    # (row k centred at 2k + 0.5; wanted at 2k + site: read at k + (site - 0.5) / 2)
+    shift = 0.5 * (FIELD_CHROMA_SITE[parity] - 0.5)
+    return (a[:hf], shift_rows(a[hf:hf + hf // 4].reshape(hf // 2, w // 2), shift),
+            shift_rows(a[hf + hf // 4:].reshape(hf // 2, w // 2), shift))
+
+
+def interlaced_i420(img: np.ndarray) -> np.ndarray:
+    """A woven BGR frame (uint8, height divisible by 4) as interlaced 4:2:0 (I420
+    planes stacked, as ``VideoFrame.from_ndarray(..., format="yuv420p")`` takes them),
+    its colour subsampled per field as a camcorder records it (:func:`field_i420`;
+    chroma row j is field j % 2's).  A progressive conversion of the woven frame would
+    average the two fields' colours: a moving rock's markers half-way between its two
+    exposures, which no camcorder writes.
+    """
+    h, w = img.shape[:2]
+    out = np.empty((h * 3 // 2, w), np.uint8)
+    U = out[h:h + h // 4].reshape(h // 2, w // 2)
+    V = out[h + h // 4:].reshape(h // 2, w // 2)
+    for p in (0, 1):
+        out[p:h:2], U[p::2], V[p::2] = field_i420(img[p::2], p)
+    return out
+
+
 class _AvWriter:
     def __init__(self, path, fps, size, enc: EncodingConfig, field_order=None,
                  pixel_aspect=1.0):
@@ -140,9 +178,13 @@ class _AvWriter:
         if enc.rotation_deg:
             s.set_display_rotation(float(enc.rotation_deg))
         self.s, self.av = s, av
+        self.field_order = field_order
 
     def write(self, img, t):
-        f = self.av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="bgr24")
+        if self.field_order is not None and img.shape[0] % 4 == 0 and img.shape[1] % 2 == 0:
+            f = self.av.VideoFrame.from_ndarray(interlaced_i420(img), format="yuv420p")
+        else:
+            f = self.av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="bgr24")
         f.pts = int(round(t * TIME_BASE))
         f.time_base = Fraction(1, TIME_BASE)
         with signals_after():  # (Ctrl-C between frames, never inside the encoder)
