@@ -113,6 +113,10 @@ def render(
                                          "interlaced (PyAV codecs), or write the woven "
                                          "frames as progressive (a re-encoding that "
                                          "lost the flags)."),
+    field_colour: str = typer.Option("shared", "--field-colour", help="--scan interlaced, "
+                                     "flagged: 'shared' 4:2:0 colour converted from the "
+                                     "woven frame (a transcode) or each field's 'own' (a "
+                                     "camera's original file)."),
     shadow: float = typer.Option(0.0, "--shadow", help="Depth (0-0.9) of a person's soft "
                                  "shadow walking beside the rock; 0 = none."),
     glare: float = typer.Option(10.0, "--glare", help="Peak level (0-255) of the lamps' "
@@ -170,7 +174,7 @@ def render(
                           drop_rate=drop_rate, auto_exposure=auto_exposure,
                           white_balance=white_balance)
     enc = EncodingConfig(codec=codec, bitrate_bps=bitrate, rotation_deg=rotation,
-                         interlace_flags=interlace_flags)
+                         interlace_flags=interlace_flags, field_colour=field_colour)
     ice = IceStyle(house_at_m=house_at_m, sheet_lines=sheet_lines)
     cfg = RenderConfig(width=width, height=height, fps=fps, camera=cam, heading_deg=heading_deg,
                        blur_subframes=blur_subframes, shutter=shutter, read_noise=noise,

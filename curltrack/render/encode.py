@@ -54,6 +54,12 @@ class EncodingConfig:
         field order (default; PyAV codecs).  False writes the woven frames as progressive
         video, as a re-encoding that dropped the flags does (its 4:2:0 colour then
         mixes the two fields).
+    field_colour : {"shared", "own"}
+        A flagged interlaced stream's 4:2:0 colour: ``"shared"`` (default) converted from
+        the woven frame as if progressive, each colour row the mean of a line of each
+        field - what FFmpeg's default transcode of camcorder footage writes (DV's 4:1:1
+        to H.264, the issue's footage); ``"own"`` subsampled per field and sited as
+        interlaced 4:2:0 is (:func:`interlaced_i420`) - a camera's original file.
     """
 
     codec: str = "mp4v"
@@ -61,6 +67,7 @@ class EncodingConfig:
     rotation_deg: int = 0
     preset: str = "veryfast"
     interlace_flags: bool = True
+    field_colour: str = "shared"
 
     def validate(self) -> None:
         """Raise ParameterError naming the first bad field."""
@@ -73,6 +80,9 @@ class EncodingConfig:
         if self.rotation_deg not in (0, 90, 180, 270):
             raise ParameterError("rotation must be 0, 90, 180 or 270 deg",
                                  where="render.encoding.rotation_deg")
+        if self.field_colour not in ("shared", "own"):
+            raise ParameterError(f"field colour {self.field_colour!r}: expected 'shared' or "
+                                 "'own'", where="render.encoding.field_colour")
         if self.codec == "mp4v" and (self.bitrate_bps or self.rotation_deg):
             raise ParameterError("a bitrate or rotation tag needs a PyAV codec (mpeg4, "
                                  "h264, hevc), not OpenCV's mp4v", where="render.encoding")
@@ -178,10 +188,10 @@ class _AvWriter:
         if enc.rotation_deg:
             s.set_display_rotation(float(enc.rotation_deg))
         self.s, self.av = s, av
-        self.field_order = field_order
+        self.own_field_colour = field_order is not None and enc.field_colour == "own"
 
     def write(self, img, t):
-        if self.field_order is not None and img.shape[0] % 4 == 0 and img.shape[1] % 2 == 0:
+        if self.own_field_colour and img.shape[0] % 4 == 0 and img.shape[1] % 2 == 0:
             f = self.av.VideoFrame.from_ndarray(interlaced_i420(img), format="yuv420p")
         else:
             f = self.av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="bgr24")

@@ -146,8 +146,8 @@ def test_interlaced_h264_is_tracked_per_field(tmp_path):
 
 def test_each_field_keeps_its_own_colour_where_it_was_sampled(tmp_path):
     """A coloured disc seen at two places by the two exposures of an interlaced frame
-    (the renderer's interlaced 4:2:0: colour subsampled per field, sited as MPEG-2 and
-    H.264 site it), decoded field by field: each field's colour centroid is its own
+    (the renderer's camera-original interlaced 4:2:0, ``field_colour="own"``: colour
+    subsampled per field, sited as MPEG-2 and H.264 site it), decoded field by field: each field's colour centroid is its own
     exposure's, where its luma puts it.  (Read as centred, the fields' colours were ~1
     frame row apart - 3 mm on a rendered camcorder; a progressive conversion of the
     woven frame put both exposures' colour half-way between them.)"""
@@ -173,9 +173,8 @@ def test_each_field_keeps_its_own_colour_where_it_was_sampled(tmp_path):
             full = 200.0 * (1 - cover[..., None]) + colour * cover[..., None]
             img[parity::2] = full[parity::2]
         path = tmp_path / f"disc{case}.mp4"
-        w = open_writer(path, 30000 / 1001, (W, H), EncodingConfig(codec="h264",
-                                                                 bitrate_bps=8_000_000),
-                        field_order=order)
+        enc = EncodingConfig(codec="h264", bitrate_bps=8_000_000, field_colour="own")
+        w = open_writer(path, 30000 / 1001, (W, H), enc, field_order=order)
         for i in range(3):
             w.write(np.clip(np.rint(img), 0, 255).astype(np.uint8), i * 1001 / 30000)
         w.close()
