@@ -128,8 +128,11 @@ def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96), live=False,
         if preview:
             small = out.add_stream("libx264", rate=rate)
             small.width, small.height, small.pix_fmt = size[0] // 2, size[1] // 2, "yuv420p"
+            small.codec_context.thread_count = 1
         st = out.add_stream("libx264", rate=rate)
         st.width, st.height, st.pix_fmt = *size, "yuv420p"
+        # (x264 on several threads: bytes that depend on the process's history)
+        st.codec_context.thread_count = 1
         st.options = {"crf": "10", "g": "1000"}
         if times_s is not None:
             # (the encoder keeps each frame's own time only in a time base that fine)
@@ -217,6 +220,7 @@ def _woven_clip(path, rng, n=30, size=(320, 240), shift_px=None, order="tff", co
     st = out.add_stream("libx264", rate=30)
     st.width, st.height, st.pix_fmt = w, h, "yuv420p"
     st.options = {"crf": "16"}
+    st.codec_context.thread_count = 1  # (one clip per seed, whatever ran before)
 
     def view(k):  # the scene at exposure k (half frames)
         M = np.float32([[1, 0, -50 - k * shift_px[0]], [0, 1, -50 - k * shift_px[1]]])
