@@ -102,9 +102,9 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     in t, per interlaced field, knots at the stops).  ``sigma_xy`` is then the hypot of
     that random part, the slowly varying part the scatter cannot see
     (:data:`SIGMA_SLOW_RATIO` x the shot's median random variance), the origin (the
-    white part of its fit's value at t = 0, from the calibrated rows, or ``origin_sigma``
-    when given and larger: the fit's own error, a late first frame's extrapolation),
-    ``sys_xy`` (parallax, the fields' offset).  ``sigma_theta``: the
+    white part of its fit's value at t = 0, from the calibrated rows; ``origin_sigma``
+    when given: a late first frame's extrapolation), ``sys_xy`` (parallax, the fields'
+    offset).  ``sigma_theta``: the
     random part, ``theta0_sigma`` with the slow error it cannot see
     (:data:`THETA0_SLOW_RATIO` x the median random variance) and ``sys_theta``.  Scales are NaN (the caller keeps
     its own sigmas) with fewer than :data:`MIN_SIGMA_DOF` degrees of freedom.
@@ -120,13 +120,12 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     if c["dof"] >= MIN_SIGMA_DOF:
         fast = c["scale"] * pix_xy
         idx = np.flatnonzero(ok & np.isfinite(xy).all(axis=1))
-        # the origin: shotframe.initial_state's fit to the first rows, its white part
-        # from the calibrated rows - or the fit's own error where larger
-        m, deg = window_rows(t[idx])
-        p0 = np.linalg.pinv(np.vander(t[idx[:m]], deg + 1, increasing=True))[0]
-        first = idx[:m]
-        white = float(np.sqrt(np.sum(p0 ** 2 * fast[first] ** 2)))
-        origin_sigma = white if origin_sigma is None else max(white, float(origin_sigma))
+        if origin_sigma is None:
+            # the origin: shotframe.initial_state's fit to the first rows
+            m, deg = window_rows(t[idx])
+            p0 = np.linalg.pinv(np.vander(t[idx[:m]], deg + 1, increasing=True))[0]
+            first = idx[:m]
+            origin_sigma = float(np.sqrt(np.sum(p0 ** 2 * fast[first] ** 2)))
         slow2 = SIGMA_SLOW_RATIO * float(np.median(fast[idx])) ** 2
         out.update(scale_xy=c["scale"], n_wrong=int(c["clipped"]),
                    sigma_xy=np.sqrt(fast ** 2 + slow2 + origin_sigma ** 2
@@ -674,12 +673,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         fld, stops,
         pix_xy=est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2), pix_theta=sig_m / max(lever, 1e-6),
         sys_xy=np.hypot(sigma_parallax, off_xy), sys_theta=off_theta,
-        # (the origin's own fit error - the sandwich of its first frames' residuals, and
-        # an extrapolation's model term: a few early frames off together, as an
-        # encoder's starved first frames are, bend it by what white noise never would;
-        # 17 sweep clips, the origin's error over the white part's sigma RMS 2.8-5.1,
-        # over this one's 1.2-2.1)
-        origin_sigma=shot["origin_sigma_m"],
+        # (the origin's own fit error where it is extrapolated or its frames disagree:
+        # what the warning above says sigma_xy includes)
+        origin_sigma=(shot["origin_sigma_m"]
+                      if shot["origin_extrapolated"] or origin_doubtful else None),
         theta0_sigma=shot["theta0_sigma_rad"])
     if np.isfinite(cal["scale_xy"]):
         data["sigma_xy"] = np.where(ok, cal["sigma_xy"], np.nan)
