@@ -324,14 +324,21 @@ def test_pole_sways_at_its_resonance():
     rng = np.random.default_rng(seed)
     f0 = float(rng.uniform(2.0, 4.0))
     cfg = CameraConfig(motion="pole", vibration_hz=f0, jitter_deg=0.0).resolved()
-    path = CameraPath(
-        cfg, 320, 240, lambda t: np.zeros((len(np.atleast_1d(t)), 2)), 0.0, 20.0, 0.0, rng)
     t = np.arange(0, 20, 1 / 50)
-    tilt = np.array([path.rotation(s)[2, 0] for s in t])  # optical axis' x component
-    spec = np.abs(np.fft.rfft(tilt - tilt.mean()))
-    peak = np.fft.rfftfreq(len(t), 1 / 50)[np.argmax(spec)]
-    assert abs(peak - f0) < 0.1 * f0, f"seed {seed}: sway peaks at {peak:.2f} Hz, not {f0:.2f}"
-    assert np.rad2deg(np.std(tilt)) == pytest.approx(0.5, rel=0.5), seed
+    spread = []
+    for _ in range(4):
+        path = CameraPath(
+            cfg, 320, 240, lambda t: np.zeros((len(np.atleast_1d(t)), 2)), 0.0, 20.0, 0.0, rng)
+        tilt = np.array([path.rotation(s)[2, 0] for s in t])  # optical axis' x component
+        spec = np.abs(np.fft.rfft(tilt - tilt.mean()))
+        peak = np.fft.rfftfreq(len(t), 1 / 50)[np.argmax(spec)]
+        assert abs(peak - f0) < 0.1 * f0, f"seed {seed}: sway peaks at {peak:.2f} Hz, not {f0:.2f}"
+        spread.append(np.std(tilt))
+    # (a narrow-band sway's std over 20 s is itself spread: 0.50 +- 0.08 deg over 300
+    # paths, one in 300 outside 0.25-0.75, and CI drew 0.79 (seed 3315442636) - over 4
+    # paths the RMS is +- 0.04)
+    rms = np.rad2deg(np.sqrt(np.mean(np.square(spread))))
+    assert rms == pytest.approx(0.5, rel=0.5), f"seed {seed}: sway {rms:.2f} deg"
 
 
 def test_rolling_shutter_row_is_the_global_shutter_image_at_that_rows_time():
