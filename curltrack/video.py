@@ -967,12 +967,10 @@ def _field_halves(fr, per_field_chroma: bool = True) -> dict:
 def shift_rows(plane: np.ndarray, shift: float) -> np.ndarray:
     """``plane`` (uint8, rows x columns) read ``shift`` rows further down: row k is the
     linear interpolation at row ``k + shift`` (edge rows repeated)."""
-    n = plane.shape[0]
-    pos = np.clip(np.arange(n) + shift, 0, n - 1)
-    k0 = np.minimum(np.floor(pos).astype(int), max(n - 2, 0))
-    k1 = np.minimum(k0 + 1, n - 1)
-    f = (pos - k0)[:, None]
-    out = (1.0 - f) * plane[k0] + f * plane[k1]
+    from scipy.ndimage import shift as nd_shift
+
+    out = nd_shift(plane.astype(np.float64), (-shift, 0.0), order=1, mode="nearest",
+                   prefilter=False)
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 

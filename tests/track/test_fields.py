@@ -152,8 +152,8 @@ def test_interlaced_h264_is_tracked_per_field(tmp_path):
 def test_each_field_keeps_its_own_colour_where_it_was_sampled(tmp_path):
     """A coloured disc seen at two places by the two exposures of an interlaced frame
     (the renderer's camera-original interlaced 4:2:0, ``field_colour="own"``: colour
-    subsampled per field, sited as MPEG-2 and H.264 site it), decoded field by field: each field's colour centroid is its own
-    exposure's, where its luma puts it.  (Read as centred, the fields' colours were ~1
+    subsampled per field, sited as MPEG-2 and H.264 site it), decoded field by field:
+    each field's colour centroid is its own exposure's, where its luma puts it.  (Read as centred, the fields' colours were ~1
     frame row apart - 3 mm on a rendered camcorder; a progressive conversion of the
     woven frame put both exposures' colour half-way between them.)"""
     from curltrack.render.encode import EncodingConfig, open_writer
@@ -163,7 +163,6 @@ def test_each_field_keeps_its_own_colour_where_it_was_sampled(tmp_path):
     rng = np.random.default_rng(seed)
     H, W = 240, 320
     yy, xx = np.mgrid[0:H, 0:W].astype(float)
-    worst = 0.0
     for case in range(4):
         order = str(rng.choice(["tff", "bff"]))
         r = rng.uniform(6, 12)
@@ -196,7 +195,6 @@ def test_each_field_keeps_its_own_colour_where_it_was_sampled(tmp_path):
                 wgt = np.where(near & (wgt > 0.2 * wgt[near].max()), wgt, 0.0)
                 got = np.array([(wgt * yy).sum(), (wgt * xx).sum()]) / wgt.sum()
                 off = float(np.hypot(*(got - c)))
-                worst = max(worst, off)
                 # (a disc of r px sampled on the field's own rows: its centroid within
                 # ~0.1-0.2 px; colour read as centred was 0.4-0.5 rows off per field)
                 assert off < 0.3, (f"seed {seed}, case {case} ({order}): field {f.field}'s "
