@@ -186,3 +186,29 @@ def test_rock_leaving_the_view_gives_ok0_rows_not_garbage(tmp_path):
     assert np.hypot(m.x - m.x_t, m.y - m.y_t)[ok].max() < 0.005
     assert len(series.data) == len(truth.data)  # rows kept, not dropped
     assert any("not found" in w for w in series.meta["warnings"])
+
+
+def test_hidden_rock_predicted_as_it_moves_and_no_bigger():
+    """The follower predicts a hidden rock by its markers' rigid motion (not each on its
+    own line: they would drift apart), and keeps out of its history a frame whose
+    markers' spread jumped (a broom head taken for a marker)."""
+    from curltrack.track.markers import MarkerDetector
+    from curltrack.track.pipeline import LAYOUT_JUMP, _Follower, rigid_extrapolation
+
+    seed = int(np.random.SeedSequence().entropy % 2**31)
+    rng = np.random.default_rng(seed)
+    layout = rng.normal(0, 40, (int(rng.integers(2, 5)), 2))
+    turn, shift = rng.uniform(-0.3, 0.3), rng.normal(0, 20, 2)
+    R = lambda a: np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])  # noqa: E731
+    p0 = layout + 400
+    p1 = (p0 - p0.mean(axis=0)) @ R(turn).T + p0.mean(axis=0) + shift
+    n = rng.uniform(1, 6)
+    want = (p0 - p0.mean(axis=0)) @ R((1 + n) * turn).T + p0.mean(axis=0) + (1 + n) * shift
+    np.testing.assert_allclose(rigid_extrapolation(p0, p1, n), want, atol=1e-9,
+                               err_msg=f"seed {seed}")
+    rig = default_rig()
+    fol = _Follower(MarkerDetector(rig), rig)
+    assert fol._remember(0, p0) and fol._remember(1, p1)
+    c = p1.mean(axis=0)
+    assert not fol._remember(2, c + (p1 - c) * LAYOUT_JUMP * 1.05), f"seed {seed}"
+    assert [f for f, _ in fol.hist] == [0, 1]
