@@ -10,8 +10,7 @@ from .._atomic import atomic_path, write_json
 from .extend import choose as choose_extension
 from .extend import extension_object
 from .residuals import binned_means
-from .search import (CLOSENESS_Z, closeness_z, heldout_log_ratio, heldout_worse_p,
-                     instrument_step, judged_like)
+from .search import heldout_log_ratio, heldout_worse_p, instrument_step, judged_like
 from .results import DiscoveryReport, Finding
 from .shots import COORDS
 
@@ -133,15 +132,11 @@ def _evidence(sc, h0) -> str:
 def rivals(best, scores, margin: float = AMBIGUITY_MARGIN, r0=None) -> list:
     """Names of the other candidates the data cannot tell from ``best``.
 
-    A rival either comes within ``margin`` of ``best``'s delta-BIC, or fits as well
-    while clearing its own look-elsewhere threshold: its chi-square gain at least
-    ``best``'s, or - both refitted - not told from it by Vuong's closeness test
-    (:func:`.search.closeness_z` under :data:`.search.CLOSENESS_Z`).  Then only the
-    BIC's parameter count prefers ``best`` (a weak patch whose extent the noise hides
-    is an impulse, a pick with one parameter fewer; a 3.6 m patch at 10 Hz, position
-    only, fitted 0.4 worse than a pick, z 0.16; with ``r0`` given).  A ``best`` that
-    fits significantly
-    better *and* has fewer parameters keeps its name (late curl against a lateral
+    A rival either comes within ``margin`` of ``best``'s delta-BIC, or fits at least as
+    well (chi-square gain >= ``best``'s) while clearing its own look-elsewhere threshold:
+    then only the BIC's parameter count prefers ``best`` (a weak patch whose extent
+    the noise hides is an impulse, a pick with one parameter fewer).  A ``best`` that
+    fits better *and* has fewer parameters keeps its name (late curl against a lateral
     kick late in the shot).  A rival's own
     threshold is not required in the first case: it speaks of chance under the baseline,
     not of how well the rival competes on these data.  A rival known only linearly
@@ -155,10 +150,9 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN, r0=None) -> list:
             continue
         gain, dbic = judged_like(best, o, r0)
         close_bic = dbic > best.delta_bic - margin
-        z = None if r0 is None else closeness_z(best, o)
-        alike = ((gain is not None and best.chi2_gain is not None and gain >= best.chi2_gain)
-                 or (z is not None and z < CLOSENESS_Z))
-        close_fit = alike and o.delta_bic > o.threshold["threshold"] and o.linear_clears
+        close_fit = (gain is not None and best.chi2_gain is not None
+                     and gain >= best.chi2_gain
+                     and o.delta_bic > o.threshold["threshold"] and o.linear_clears)
         if close_bic or close_fit:
             out.append(o.name)
     return sorted(out)
@@ -296,7 +290,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
             # delta-BIC 0.7 alike an unsupported late_curl, seed 3536223930180992943)
             best_fit, best_model_name, best_params = fit0, None, {}
             why = (f"not told from {' or '.join(ambiguous)}: the data fit them alike "
-                   f"(delta-BIC within {AMBIGUITY_MARGIN:g}, or Vuong's closeness test)")
+                   f"(delta-BIC within {AMBIGUITY_MARGIN:g}, or a fit at least as good)")
             findings[next(i for i, g in enumerate(findings) if g is f)] = replace(
                 f, not_named_because=list(f.not_named_because) + [why],
                 evidence=f.evidence + "; not named: " + why)

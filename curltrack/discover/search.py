@@ -812,36 +812,6 @@ def judged_like(best, o, r0) -> tuple:
     return gain, gain - o.k * np.log(r0.size)
 
 
-#: Vuong's closeness statistic (:func:`closeness_z`) over which the data prefer one of
-#: two refitted candidates (one-sided 2.5 %): below it they fit alike, whatever their
-#: parameter counts.
-CLOSENESS_Z = 1.96
-
-
-def closeness_z(best, o) -> float | None:
-    """Vuong's (1989) closeness statistic of two refitted candidates: the sum over the
-    data points of ``o``'s squared whitened residual minus ``best``'s, over its
-    standard error (sqrt(n) times the differences' standard deviation), under the
-    noise level ``best`` is judged by.  Large and positive: the data prefer ``best``;
-    near 0: they cannot tell the two apart.  None when either was not refitted.
-
-    A patch of lower friction 3.6 m long, position only at 10 Hz under AR(1) noise,
-    took chi-square 6189.3 off the baseline's and a pick 6189.7: z = 0.16, and the pick
-    was named for its parameter fewer (case seed 341223680).  In 8 other cases where
-    the hidden pick or patch was named, its rivals had z = 3.2-20.9 (a patch 56 ahead
-    of a pick at 10 Hz: 3.2).
-    """
-    if best.fit is None or o.fit is None or best.fit.r.shape != o.fit.r.shape:
-        return None
-    scale = 1.0 if best._scale is None else best._scale
-    d = (o.fit.r * scale) ** 2 - (best.fit.r * scale) ** 2
-    sd = float(np.std(d))
-    total = float(np.sum(d))
-    if sd == 0.0:
-        return 0.0 if total == 0.0 else float(np.sign(total) * np.inf)
-    return total / (np.sqrt(d.size) * sd)
-
-
 def _no_shorter(blocks, initial) -> list:
     """``blocks`` (slice, length) lengthened to the scan's ``initial`` lengths.
 
