@@ -289,11 +289,17 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
             # 'unexplained' there was a false alarm (a 10 Hz clean draw: a pick at
             # delta-BIC 0.7 alike an unsupported late_curl, seed 3536223930180992943)
             best_fit, best_model_name, best_params = fit0, None, {}
-            why = (f"not told from {' or '.join(ambiguous)}: the data fit them alike "
-                   f"(delta-BIC within {AMBIGUITY_MARGIN:g}, or a fit at least as good)")
-            findings[next(i for i, g in enumerate(findings) if g is f)] = replace(
-                f, not_named_because=list(f.not_named_because) + [why],
-                evidence=f.evidence + "; not named: " + why)
+            # (each says so: a supported finding under a 'none' with no reason reads as
+            # a contradiction)
+            alike = {sc.name: ambiguous, **{a: [sc.name] for a in ambiguous}}
+            for i, g in enumerate(findings):
+                if g.supported and g.effect in alike:
+                    why = (f"not told from {' or '.join(alike[g.effect])}: the data fit "
+                           f"them alike (delta-BIC within {AMBIGUITY_MARGIN:g}, or a fit "
+                           f"at least as good)")
+                    findings[i] = replace(g, not_named_because=list(g.not_named_because or
+                                                                    []) + [why],
+                                          evidence=g.evidence + "; not named: " + why)
         else:
             verdict = sc.name
     elif before.structured or base_bound or any(_at_bound(f) for _, f in blocked):
