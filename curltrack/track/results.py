@@ -13,7 +13,6 @@ from ..series import Series, make_meta
 from .outline import scale_check, scale_check_resolution
 from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, correct_parallax,
                        estimate_height, focal_for_height, layout_scale_mismatch)
-from .scatter import CLIP as PATH_CLIP
 from .shotframe import WINDOW_S, to_shot_frame, window_rows
 from ..series.stops import detect_stops
 
@@ -114,7 +113,7 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
 
     n = len(t)
     out = dict(scale_xy=np.nan, scale_theta=np.nan, sigma_xy=np.full(n, np.nan),
-               sigma_theta=np.full(n, np.nan), n_wrong=0, off_path=np.zeros(n, bool))
+               sigma_theta=np.full(n, np.nan), n_wrong=0)
     tt = np.where(ok, t, np.nan)
     br = [b for b in (stops.t_stop_translation,) if b]
     c = path_scatter(tt, xy, pix_xy, runs=field, breaks=br)
@@ -128,7 +127,7 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
             first = idx[:m]
             origin_sigma = float(np.sqrt(np.sum(p0 ** 2 * fast[first] ** 2)))
         slow2 = SIGMA_SLOW_RATIO * float(np.median(fast[idx])) ** 2
-        out.update(scale_xy=c["scale"], n_wrong=int(c["clipped"]), off_path=c["off_path"],
+        out.update(scale_xy=c["scale"], n_wrong=int(c["clipped"]),
                    sigma_xy=np.sqrt(fast ** 2 + slow2 + origin_sigma ** 2
                                     + np.asarray(sys_xy) ** 2))
     brt = [b for b in (stops.t_stop_rotation,) if b]
@@ -683,18 +682,6 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         data["sigma_xy"] = np.where(ok, cal["sigma_xy"], np.nan)
     if np.isfinite(cal["scale_theta"]):
         data["sigma_theta"] = np.where(ok & np.isfinite(sigma_theta), cal["sigma_theta"], np.nan)
-    # A row the rock's smooth path misses by more than the scatter's clip is a wrong
-    # measurement, not noise: refused (CI seed 1744272862: a lattice walked ~5 px off
-    # under a broom while the markers were hidden, the first frame they were found again
-    # 14.7 mm off under a sigma of 1.1 mm, 13 sigma)
-    off = np.asarray(cal["off_path"], bool) & ok
-    if off.any():
-        ok = ok & ~off
-        data.loc[off, ["x", "y", "theta", "sigma_xy", "sigma_theta", "quality"]] = np.nan
-        data.loc[off, "ok"] = 0
-        warnings.append(f"{path}: frame(s) {frame_ranges(frame[off])}: off the rock's "
-                        f"smooth path by more than {PATH_CLIP:g} robust sigmas of the "
-                        f"rows' scatter (a lattice or marker error) (ok = 0)")
     for note in stops.notes:
         warnings.append(f"stops: {note}")
     cam_h = est.height_m - depth_eff if np.isfinite(est.height_m) else None
