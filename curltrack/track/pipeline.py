@@ -255,12 +255,12 @@ class _Follower:
         grid around it - across the view.  After :data:`FULL_SEARCH_FRAMES` frames
         without markers the new ones are taken as they are (the camera may have zoomed).
         """
+        def spread(p):  # RMS distance of the markers from their centroid (px)
+            return np.sqrt(np.mean(np.sum(np.square(p - p.mean(axis=0)), axis=1)))
+
         xy = np.asarray(xy, float)
         if self.hist and len(xy) > 1 and self.lost <= FULL_SEARCH_FRAMES:
-            size = np.sqrt(np.mean(np.sum(np.square(xy - xy.mean(axis=0)), axis=1)))
-            last = self.hist[-1][1]
-            was = np.sqrt(np.mean(np.sum(np.square(last - last.mean(axis=0)), axis=1)))
-            if not abs(np.log(size / was)) < np.log(LAYOUT_JUMP):
+            if not abs(np.log(spread(xy) / spread(self.hist[-1][1]))) < np.log(LAYOUT_JUMP):
                 return False
         self.hist = (self.hist + [(frame, xy.copy())])[-2:]
         self.lost = 0

@@ -153,9 +153,10 @@ def test_each_field_keeps_its_own_colour_where_it_was_sampled(tmp_path):
     """A coloured disc seen at two places by the two exposures of an interlaced frame
     (the renderer's camera-original interlaced 4:2:0, ``field_colour="own"``: colour
     subsampled per field, sited as MPEG-2 and H.264 site it), decoded field by field:
-    each field's colour centroid is its own exposure's, where its luma puts it.  (Read as centred, the fields' colours were ~1
-    frame row apart - 3 mm on a rendered camcorder; a progressive conversion of the
-    woven frame put both exposures' colour half-way between them.)"""
+    each field's colour centroid is its own exposure's, where its luma puts it.  (Read
+    as centred, the fields' colours were ~1 frame row apart - 3 mm on a rendered
+    camcorder; a progressive conversion of the woven frame put both exposures' colour
+    half-way between them.)"""
     from curltrack.render.encode import EncodingConfig, open_writer
     from curltrack.video import iter_frames
 
