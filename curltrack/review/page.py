@@ -190,6 +190,9 @@ function frameAt(tv) {
   return R.video_frames[p];
 }
 function show(f) {
+  // (moving the cursor redraws the plots and drops their hover, which a click needs:
+  // only move it when the frame changes)
+  if (f === window.reviewState.currentFrame) return;
   const i = row.get(f);
   window.reviewState.currentFrame = f;
   const box = document.getElementById('frameinfo');

@@ -82,8 +82,12 @@ def test_review_page_in_a_browser(page_file):
         pts = page.locator("#series .scatterlayer .trace").nth(2).locator("path.point")
         pts.nth(k).scroll_into_view_if_needed()
         box = pts.nth(k).bounding_box()
-        page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
-        page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+        cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+        page.mouse.move(cx - 3, cy)
+        page.mouse.move(cx, cy)
+        # plotly clicks the point its hover found: wait for the hover label, as a user would
+        page.wait_for_selector("#series .hoverlayer .hovertext", timeout=10000)
+        page.mouse.click(cx, cy)
         try:
             page.wait_for_function("window.reviewState.clicks > 0", timeout=10000)
         except Exception:  # (what the click hit, for whoever reads the failure)
