@@ -13,6 +13,7 @@ from ..series import Series, make_meta
 from .outline import scale_check, scale_check_resolution
 from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, correct_parallax,
                        estimate_height, focal_for_height, layout_scale_mismatch)
+from .scatter import CLIP as PATH_CLIP
 from .shotframe import WINDOW_S, to_shot_frame, window_rows
 from ..series.stops import detect_stops
 
@@ -108,12 +109,15 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     random part, ``theta0_sigma`` with the slow error it cannot see
     (:data:`THETA0_SLOW_RATIO` x the median random variance) and ``sys_theta``.  Scales are NaN (the caller keeps
     its own sigmas) with fewer than :data:`MIN_SIGMA_DOF` degrees of freedom.
+    ``off_path`` ((N,) bool): rows the path through the others misses by more than
+    :data:`~curltrack.track.scatter.CLIP` times their ``sigma_xy`` (wrong rows, for
+    the caller to refuse); ``n_wrong``: the rows left out of the scale.
     """
     from .scatter import path_scatter
 
     n = len(t)
     out = dict(scale_xy=np.nan, scale_theta=np.nan, sigma_xy=np.full(n, np.nan),
-               sigma_theta=np.full(n, np.nan), n_wrong=0)
+               sigma_theta=np.full(n, np.nan), n_wrong=0, off_path=np.zeros(n, bool))
     tt = np.where(ok, t, np.nan)
     br = [b for b in (stops.t_stop_translation,) if b]
     c = path_scatter(tt, xy, pix_xy, runs=field, breaks=br)
@@ -127,9 +131,15 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
             first = idx[:m]
             origin_sigma = float(np.sqrt(np.sum(p0 ** 2 * fast[first] ** 2)))
         slow2 = SIGMA_SLOW_RATIO * float(np.median(fast[idx])) ** 2
-        out.update(scale_xy=c["scale"], n_wrong=int(c["clipped"]),
-                   sigma_xy=np.sqrt(fast ** 2 + slow2 + origin_sigma ** 2
-                                    + np.asarray(sys_xy) ** 2))
+        sigma_xy = np.sqrt(fast ** 2 + slow2 + origin_sigma ** 2 + np.asarray(sys_xy) ** 2)
+        # a row off the path (out of the scale) by more than CLIP of its own whole sigma
+        # is one that sigma cannot describe; a row merely noisier than its neighbours -
+        # an encoder's starved first frames, the first row beside noisier ones - is
+        # off their path by less than its sigma, which carries the slow errors too
+        with np.errstate(invalid="ignore"):
+            wrong = c["off_path"] & (c["miss"] > PATH_CLIP * sigma_xy)
+        out.update(scale_xy=c["scale"], n_wrong=int(c["clipped"]), off_path=wrong,
+                   sigma_xy=sigma_xy)
     brt = [b for b in (stops.t_stop_rotation,) if b]
     c = path_scatter(tt, theta, pix_theta, runs=field, breaks=brt)
     if c["dof"] >= MIN_SIGMA_DOF:
@@ -682,6 +692,18 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         data["sigma_xy"] = np.where(ok, cal["sigma_xy"], np.nan)
     if np.isfinite(cal["scale_theta"]):
         data["sigma_theta"] = np.where(ok & np.isfinite(sigma_theta), cal["sigma_theta"], np.nan)
+    # a row the rock's smooth path through the others misses by more than CLIP times
+    # its own sigma_xy is a wrong measurement that sigma does not describe: refused (CI
+    # seed 1744272862: a lattice walked ~5 px off under a broom while the markers were
+    # hidden, the first frame they were found again 14.7 mm off under 1.1 mm, 13 sigma)
+    off = np.asarray(cal["off_path"], bool) & ok
+    if off.any():
+        ok = ok & ~off
+        data.loc[off, ["x", "y", "theta", "sigma_xy", "sigma_theta", "quality"]] = np.nan
+        data.loc[off, "ok"] = 0
+        warnings.append(f"{path}: frame(s) {frame_ranges(frame[off])}: off the rock's "
+                        f"smooth path through the other rows by more than {PATH_CLIP:g} "
+                        "times sigma_xy (a lattice or marker error) (ok = 0)")
     for note in stops.notes:
         warnings.append(f"stops: {note}")
     cam_h = est.height_m - depth_eff if np.isfinite(est.height_m) else None

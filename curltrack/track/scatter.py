@@ -96,7 +96,9 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
         ``scale`` (sqrt of sum z^2 / sum (1 - h) over the kept rows; NaN when too few
         rows), ``dof`` (the degrees of freedom behind it: rows - spline parameters,
         summed over columns), ``n`` (rows used), ``clipped`` (rows left out as wrong)
-        and ``off_path`` ((N,) bool: those rows).
+        and ``off_path`` ((N,) bool: those rows); ``miss`` ((N,) array, the units of
+        ``q``): each used row's largest miss of the path over the columns (a left-out
+        row's: of the path through the others), NaN for rows not used.
     """
     t = np.asarray(t, float)
     q = np.asarray(q, float).reshape(len(t), -1)
@@ -104,7 +106,8 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
     use = np.isfinite(t) & np.isfinite(q).all(axis=1) & np.isfinite(sig) & (sig > 0)
     runs = np.zeros(len(t), int) if runs is None else np.asarray(runs)
     off_path = np.zeros(len(t), bool)
-    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0, off_path=off_path)
+    miss = np.full(len(t), np.nan)
+    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0, off_path=off_path, miss=miss)
     num = den = 0.0
     n_used = clipped = 0
     for lab in np.unique(runs[use]):
@@ -155,6 +158,7 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
             n_used += int(keep.sum())
             clipped += int((~keep).sum())
             off_path[seg[~keep]] = True
+            miss[seg] = np.abs(z).max(axis=1) * ss
     if den > 0:
         out.update(scale=float(np.sqrt(num / den)), dof=den, n=n_used, clipped=clipped)
     return out

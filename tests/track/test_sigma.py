@@ -190,3 +190,33 @@ def test_sigma_honest_on_a_random_camera_setup(tmp_path):
     z = float(np.sqrt(np.mean((e / sig) ** 2)))
     assert 0.7 <= z <= 1.4, f"{what}: RMS of position error/sigma {z:.2f}"
 
+
+
+def test_a_row_off_the_smooth_path_is_handed_back_for_refusal():
+    """``calibrate_sigma`` hands back the rows the rock's smooth path through the
+    others misses by more than the scatter's clip times their own sigma_xy
+    (``off_path``), which ``build_series`` refuses (ok = 0): a lattice walked off under
+    a broom put one row 13 sigma off with ok = 1 (CI seed 1744272862).  The wrong row,
+    and only it, is handed back."""
+    from types import SimpleNamespace
+
+    from curltrack.track.results import calibrate_sigma
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(120, 400))
+    t = np.arange(n) / 30.0
+    a = rng.uniform(0.05, 0.3)
+    v0 = rng.uniform(0.5, 2.0)
+    xy = np.column_stack([v0 * t - 0.5 * a * t ** 2, 0.01 * t ** 3])
+    sig = rng.uniform(3e-4, 1e-3) * (1 + rng.random(n))
+    xy = xy + sig[:, None] * rng.standard_normal((n, 2))
+    bad = int(rng.integers(20, n - 20))
+    xy[bad] += rng.uniform(12, 40) * sig[bad] * np.array([1.0, 0.0])
+    ok = np.ones(n, bool)
+    stops = SimpleNamespace(t_stop_translation=None, t_stop_rotation=None)
+    cal = calibrate_sigma(t, xy, np.zeros(n), ok, np.zeros(n, int), stops, pix_xy=sig,
+                          pix_theta=np.full(n, 1e-3), sys_xy=0.0, sys_theta=0.0,
+                          origin_sigma=None, theta0_sigma=0.0)
+    assert cal["off_path"][bad], f"seed {seed}"
+    assert cal["off_path"].sum() == 1, f"seed {seed}: {np.flatnonzero(cal['off_path'])}"

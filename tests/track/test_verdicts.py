@@ -6,7 +6,8 @@ A rendered clip gets lost frames - black, frozen (the previous frame again), def
 exit status on those frames and on random untouched ones.  Doctor and calibrate run
 track's own per-frame loop from the video's start to the judged frames; the refusals
 that rest on the whole series (a poor fit against the shot's typical
-residual, a sigma outlier, a marker layout unlike the rest of the video) are not theirs:
+residual, a sigma outlier, a marker layout unlike the rest of the video, a row off the
+rock's smooth path through the others) are not theirs:
 such frames are left out, and must be few.
 """
 
@@ -18,7 +19,8 @@ import pytest
 from curltrack.rig import default_rig
 
 #: track's refusals that rest on other frames (not visible in one frame alone)
-HISTORY = ("grid fit poor", "cell index", "marker layout inconsistent", "uncertain: sigma_xy")
+HISTORY = ("grid fit poor", "cell index", "marker layout inconsistent", "uncertain: sigma_xy",
+           "off the rock's smooth path")
 
 
 def _lost_frames_clip(tmp, seed):
