@@ -605,6 +605,7 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
             return score
         tried = sorted(done, key=lambda q: q[0].chi2)
     fit1, m, loc, k = tried[0]
+    fit1, m = _respread(cand, base, fit1, m, name)
     if not fit1.success:
         score.note += (f"; the nonlinear fit did not converge ({fit1.message}): its "
                        f"numbers are where it stopped")
@@ -613,6 +614,38 @@ def refine_candidate(score: CandidateScore, base: JointModel, fit0: FitOut,
     score.nfev = getattr(m, "nfev", None)
     _adopt(score, fit1, m, fit0)
     return score
+
+
+def _respread(cand, base: JointModel, fit1: FitOut, m: JointModel, name: str):
+    """The refit also started from the effect's size spread differently over its
+    location (:attr:`~curltrack.physics.registry.EffectDef.respread`), location free:
+    each start runs :data:`START_NFEV` evaluations, and the best is finished when it is
+    already below ``fit1``.  Returns the (fit, model) that ends lowest."""
+    starts = cand.effect.respread(fit1.values, base.shots) if cand.effect else []
+    best = None
+    for start in starts:
+        m2 = JointModel(base.shots, base.baseline, cand, rig=base.rig,
+                        phi_per_shot=base.phi_per_shot)
+        m2.values.update(fit1.values)
+        m2.values.update(start)
+        m2.cand_fixed = dict(m.cand_fixed) if m.cand_fixed is not None else None
+        m2.free, m2.bounds = list(m.free), dict(m.bounds)
+        try:
+            f2 = m2.fit(max_nfev=START_NFEV, name=name, tol=FIT_TOL)
+        except CurltrackError:
+            continue
+        if f2.chi2 < fit1.chi2 and (best is None or f2.chi2 < best[0].chi2):
+            best = (f2, m2)
+    if best is None:
+        return fit1, m
+    m2 = best[1]
+    nfev0 = m2.nfev
+    try:
+        f2 = m2.fit(max_nfev=FIT_MAX_NFEV, name=name, tol=FIT_TOL)
+    except CurltrackError:
+        return fit1, m
+    m2.nfev = (m.nfev[0] + nfev0[0] + m2.nfev[0], m.nfev[1] + nfev0[1] + m2.nfev[1])
+    return (f2, m2) if f2.chi2 < fit1.chi2 else (fit1, m)
 
 
 def _adopt(score: CandidateScore, fit1: FitOut, m: JointModel, fit0: FitOut) -> None:

@@ -140,6 +140,11 @@ class EffectDef:
     marks : callable
         ``marks(params, shot_index, t, pred) -> list`` of ``("span", t0, t1)`` or
         ``("instant", t)``: where a figure shades the effect.
+    respread : callable
+        ``respread(values, shots) -> list of dict``: other starts for the candidate's
+        refit, the fitted effect's size spread differently over its location (a patch's
+        deficit over a wider stretch); the refit keeps whichever ends lowest.  Default:
+        none.
     """
 
     name: str
@@ -156,6 +161,7 @@ class EffectDef:
     finish: Callable = _unchanged
     location_bounds: Callable = lambda loc, shots: {}
     marks: Callable = lambda params, j, t, pred: []
+    respread: Callable = lambda values, shots: []
 
     @property
     def param_names(self) -> tuple:

@@ -349,3 +349,62 @@ def test_reused_jacobian_columns_are_the_recomputed_ones():
     fresh.free = list(m.free)
     assert np.array_equal(J, fresh.jacobian_raw(m.values)), f"seed {seed}"
     assert n_cols["n"] <= 1, f"seed {seed}: only a_T's column is new"
+
+
+def test_a_patch_refit_widens_a_narrow_deep_start():
+    """A strong, wide patch whose refit started narrow and deep (the linear scan ranks
+    wide stretches poorly far from the null: factor 0.68 over 3 m under heavy noise
+    was refitted as 0.051 over 0.86 m and a pick named, seed 2026112750) ends at the
+    truth: the refit is also started from the same deficit spread 2-4x wider
+    (:attr:`EffectDef.respread`).  Random patch, noise class and rate per run."""
+    from curltrack.discover.candidates import build_candidates
+    from curltrack.discover.model import JointModel
+    from curltrack.discover.search import FIT_MAX_NFEV, _respread
+    from curltrack.discover.shots import shot_from_series
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    inst = {"noise_class": str(rng.choice(["white", "heavy"])),
+            "rate_hz": float(rng.choice([10.0, 30.0])), "theta": bool(rng.random() < 0.5)}
+    f = 2.0
+    while f >= 1.0:   # a slippery stretch: its narrow deep twin reaches the bound
+        shots, truth = make_case("friction_patch", float(rng.uniform(0.25, 0.35)), rng,
+                                 instrument=inst)
+        a, b, f = truth["y_start_m"], truth["y_end_m"], truth["factor"]
+    sh = [shot_from_series(s) for s in shots]
+    base = JointModel(sh, "paper")
+    fit0 = base.fit(max_nfev=80)
+    cand = next(c for c in build_candidates(sh, "paper") if c.name == "friction_patch")
+    # a narrow deep start at the patch's centre: its whole deficit where the factor is
+    # at its bound (0.05), the case that stuck
+    lower = next(p.lower for p in cand.size if p.name == "factor")
+    mid, w = 0.5 * (a + b), (1.0 - f) * (b - a) / (1.0 - 1.02 * lower)
+    m = JointModel(sh, "paper", cand)
+    m.values.update(fit0.values)
+    m.values.update(y_start_m=mid - w / 2, y_end_m=mid + w / 2, factor=1.02 * lower)
+    # as the refit does: the location held first, then freed
+    free = list(m.free)
+    m.free = [p for p in free if p not in ("y_start_m", "y_end_m")]
+    m.fit(max_nfev=FIT_MAX_NFEV)
+    m.free = free
+    fit1 = m.fit(max_nfev=FIT_MAX_NFEV)
+    fit2, m2 = _respread(cand, base, fit1, m, "<test>")
+    what = f"seed {seed} {inst}: truth {a:.2f}-{b:.2f} m x{f:.3f}"
+    assert fit2.chi2 <= fit1.chi2, what
+    got = sorted((fit2.values["y_start_m"], fit2.values["y_end_m"]))
+    assert abs(got[0] - a) < 0.3 and abs(got[1] - b) < 0.3, (what, got, fit2.values["factor"])
+    assert abs(fit2.values["factor"] - f) < 0.05, (what, fit2.values["factor"])
+
+
+def test_a_strong_wide_patch_under_heavy_noise_is_not_named_a_pick():
+    """The case that found it (bench_discover, heavy class at 4x its 90 % strength,
+    seed 2026112750: factor 0.68 over 10.9-13.9 m, 10 Hz, theta measured): its refit
+    stopped at 0.051 over 11.9-12.8 m and the verdict was ``pick``."""
+    rng = np.random.default_rng(2026112750)
+    inst = {"noise_class": "heavy", "rate_hz": float(rng.choice([10.0, 30.0])),
+            "theta": bool(rng.random() < 0.5)}
+    shots, truth = make_case("friction_patch", 0.32, rng, instrument=inst)
+    rep = discover(shots, baseline=truth["baseline"], seed=2026112750)
+    assert rep["verdict"] == "friction_patch", rep.summary()
+    f = next(f for f in rep.findings if f.effect == "friction_patch")
+    assert abs(f.params["factor"] - truth["factor"]) < 0.05, f.params
