@@ -436,7 +436,8 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
     dict or None
         ``gain`` (chi-square), ``delta_bic`` (less ``k ln n`` for its size and
         location(s), as the candidates'), ``threshold`` (the largest gain reached by
-        chance at :data:`STEP_LEVEL`: the flips' or Bonferroni's, whichever is larger), ``variance`` (the segment's whitened residuals'
+        chance at :data:`STEP_LEVEL`: the flips' or Bonferroni's, whichever is larger;
+        Bonferroni's alone when the gain does not clear it, the flips then not drawn), ``variance`` (the segment's whitened residuals'
         variance without the jump, at least 1: for the record), ``found`` (gain above
         the threshold), ``shot``, ``coord``, ``t_from_s``, ``t_to_s`` (None: to the
         end), ``n_scanned``; None without position segments.
@@ -482,7 +483,13 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
                     "variance": var, "_col": col * (proj_r[q] / norm2[q])}
     if best is None:
         return None
-    r_null = r_perp - best.pop("_col")
+    col = best.pop("_col")
+    best["n_scanned"] = int(sum(E.shape[1] for _, E, _, _ in scans))
+    bonferroni = float(stats.chi2.isf(STEP_LEVEL / best["n_scanned"], 1))
+    if best["gain"] <= bonferroni:   # not found whatever the flips say: not drawn
+        best.update(threshold=bonferroni, found=False)
+        return best
+    r_null = r_perp - col
     rng = np.random.default_rng(seed)
     top = []
     for n_draws in np.diff(np.r_[0:STEP_DRAWS:100, STEP_DRAWS]):   # (bounded memory)
@@ -491,12 +498,10 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
         top.append(np.max([np.max((E.T @ flips[sl]) ** 2 / norm2[:, None], axis=0)
                            for sl, E, _, norm2 in scans], axis=0))
     top = np.concatenate(top)
-    best["n_scanned"] = int(sum(E.shape[1] for _, E, _, _ in scans))
     # never under the Gaussian Bonferroni level: where the noise model holds that bound
     # is the one to keep (the flips alone put 4 of 60 clean AR(1) shots' jumps over
     # it at chi-square 17-23, where Bonferroni's 19.7 put 1)
-    best["threshold"] = max(float(np.quantile(top, 1.0 - STEP_LEVEL)),
-                            float(stats.chi2.isf(STEP_LEVEL / best["n_scanned"], 1)))
+    best["threshold"] = max(float(np.quantile(top, 1.0 - STEP_LEVEL)), bonferroni)
     best["found"] = bool(best["gain"] > best["threshold"])
     return best
 
