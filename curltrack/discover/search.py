@@ -437,10 +437,11 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
         ``gain`` (chi-square), ``delta_bic`` (less ``k ln n`` for its size and
         location(s), as the candidates'), ``threshold`` (the largest gain reached by
         chance at :data:`STEP_LEVEL`: the flips' or Bonferroni's, whichever is larger;
-        Bonferroni's alone when the gain does not clear it, the flips then not drawn), ``variance`` (the segment's whitened residuals'
-        variance without the jump, at least 1: for the record), ``found`` (gain above
-        the threshold), ``shot``, ``coord``, ``t_from_s``, ``t_to_s`` (None: to the
-        end), ``n_scanned``; None without position segments.
+        Bonferroni's alone when the gain does not clear it, the flips then not drawn),
+        ``variance`` (the segment's whitened residuals' variance without the jump, at
+        least 1: for the record), ``found`` (gain above the threshold), ``shot``,
+        ``coord``, ``t_from_s``, ``t_to_s`` (None: to the end), ``n_scanned``; None
+        without position segments.
     """
     from scipy import stats
 
@@ -464,9 +465,10 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
         proj = Q0[sl].T @ E
         norm2 = np.sum(E * E, axis=0) - np.sum(proj * proj, axis=0)
         ok = norm2 > 1e-8 * np.sum(E * E, axis=0)
-        scans.append((sl, E, proj, np.where(ok, norm2, np.inf)))
+        norm2 = np.where(ok, norm2, np.inf)
+        scans.append((sl, E, norm2))
         proj_r = E.T @ r_perp[sl]
-        gain = np.where(ok, proj_r ** 2 / scans[-1][3], 0.0)
+        gain = proj_r ** 2 / norm2
         q = int(np.argmax(gain))
         if best is None or gain[q] > best["gain"]:
             a, b = shapes[q]
@@ -484,7 +486,7 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
     if best is None:
         return None
     col = best.pop("_col")
-    best["n_scanned"] = int(sum(E.shape[1] for _, E, _, _ in scans))
+    best["n_scanned"] = int(sum(E.shape[1] for _, E, _ in scans))
     bonferroni = float(stats.chi2.isf(STEP_LEVEL / best["n_scanned"], 1))
     if best["gain"] <= bonferroni:   # not found whatever the flips say: not drawn
         best.update(threshold=bonferroni, found=False)
@@ -496,7 +498,7 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
         flips = rng.choice([-1.0, 1.0], size=(r_null.size, n_draws)) * r_null[:, None]
         flips -= Q0 @ (Q0.T @ flips)
         top.append(np.max([np.max((E.T @ flips[sl]) ** 2 / norm2[:, None], axis=0)
-                           for sl, E, _, norm2 in scans], axis=0))
+                           for sl, E, norm2 in scans], axis=0))
     top = np.concatenate(top)
     # never under the Gaussian Bonferroni level: where the noise model holds that bound
     # is the one to keep (the flips alone put 4 of 60 clean AR(1) shots' jumps over

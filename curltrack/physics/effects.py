@@ -256,7 +256,7 @@ def _patch_respread(values, shots):
     for k in PATCH_RESPREAD:
         half = 0.5 * k * (b - a)
         lo, hi = max(0.0, 0.5 * (a + b) - half), min(y_max, 0.5 * (a + b) + half)
-        if hi - lo > (b - a) * 1.2:
+        if hi - lo > (b - a) * 1.2:   # (not where the sheet's ends leave it as it was)
             out.append({"y_start_m": lo, "y_end_m": hi,
                         "factor": float(1.0 + (f - 1.0) * (b - a) / (hi - lo))})
     return out
