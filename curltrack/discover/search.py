@@ -197,11 +197,17 @@ def heldout_worse_p(before: dict, after: dict, coord: str) -> float:
     return float(stats.t.sf(d.mean() / (sd / np.sqrt(d.size)), d.size - 1))
 
 
-def effect_columns(base: JointModel, fit0: FitOut, cand, loc: dict) -> np.ndarray:
-    """Whitened d(model)/d(size params) at effect size 0 and location ``loc``."""
+def _candidate_model(base: JointModel, cand, values: dict) -> JointModel:
+    """The baseline's shots and model with candidate ``cand``, from ``values``."""
     m = JointModel(base.shots, base.baseline, cand, rig=base.rig,
                    phi_per_shot=base.phi_per_shot)
-    m.values.update(fit0.values)
+    m.values.update(values)
+    return m
+
+
+def effect_columns(base: JointModel, fit0: FitOut, cand, loc: dict) -> np.ndarray:
+    """Whitened d(model)/d(size params) at effect size 0 and location ``loc``."""
+    m = _candidate_model(base, cand, fit0.values)
     m.cand_fixed = dict(loc)
     for p in cand.location:
         m.values[p.name] = loc[p.name]
@@ -472,26 +478,25 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
         q = int(np.argmax(gain))
         if best is None or gain[q] > best["gain"]:
             a, b = shapes[q]
-            # the jump's own fitted column (projected off the fit's directions), to take
-            # its share out of the residuals the chance level is drawn from
-            col = np.zeros_like(r_perp)
-            col[sl] = E[:, q]
-            col -= Q0 @ (Q0.T @ col)
+            jump = (sl, E[:, q] * (proj_r[q] / norm2[q]))
             dof = m * (fit.n - len(fit.free)) / fit.n - 1.0
             var = max((float(np.sum(r_perp[sl] ** 2)) - gain[q]) / max(dof, 1.0), 1.0)
             best = {"gain": float(gain[q]), "shot": j, "coord": c, "t_from_s": float(t[a]),
                     "t_to_s": float(t[b]) if b < m else None,
                     "delta_bic": float(gain[q] - (2 if b == m else 3) * np.log(fit.n)),
-                    "variance": var, "_col": col * (proj_r[q] / norm2[q])}
+                    "variance": var}
     if best is None:
         return None
-    col = best.pop("_col")
     best["n_scanned"] = int(sum(E.shape[1] for _, E, _ in scans))
     bonferroni = float(stats.chi2.isf(STEP_LEVEL / best["n_scanned"], 1))
     if best["gain"] <= bonferroni:   # not found whatever the flips say: not drawn
         best.update(threshold=bonferroni, found=False)
         return best
-    r_null = r_perp - col
+    # the best jump's fitted share (projected off the fit's directions) taken out of
+    # the residuals the chance level is drawn from
+    col = np.zeros_like(r_perp)
+    col[jump[0]] = jump[1]
+    r_null = r_perp - (col - Q0 @ (Q0.T @ col))
     rng = np.random.default_rng(seed)
     top = []
     for n_draws in np.diff(np.r_[0:STEP_DRAWS:100, STEP_DRAWS]):   # (bounded memory)
@@ -545,9 +550,7 @@ def _close_tol(locs) -> float:
 def _start_model(base, fit0, cand, E, loc, sub) -> JointModel:
     """Baseline + candidate at scan location ``loc``, sizes from the linear solution."""
     coef, *_ = np.linalg.lstsq(np.column_stack([fit0.J, E]), fit0.r, rcond=None)
-    m = JointModel(base.shots, base.baseline, cand, rig=base.rig,
-                   phi_per_shot=base.phi_per_shot)
-    m.values.update(fit0.values)
+    m = _candidate_model(base, cand, fit0.values)
     m.cand_fixed = {k2: v for k2, v in loc.items() if k2 == "shot"}
     for p in cand.location:
         m.values[p.name] = loc[p.name]
@@ -631,10 +634,7 @@ def _respread(cand, base: JointModel, fit1: FitOut, m: JointModel, name: str):
     starts = cand.effect.respread(fit1.values, base.shots) if cand.effect else []
     best = None
     for start in starts:
-        m2 = JointModel(base.shots, base.baseline, cand, rig=base.rig,
-                        phi_per_shot=base.phi_per_shot)
-        m2.values.update(fit1.values)
-        m2.values.update(start)
+        m2 = _candidate_model(base, cand, {**fit1.values, **start})
         m2.cand_fixed = dict(m.cand_fixed) if m.cand_fixed is not None else None
         m2.free, m2.bounds = list(m.free), dict(m.bounds)
         try:
