@@ -12,8 +12,9 @@ duration (t span)      <= :data:`MAX_DURATION_S`   t in ms (span / 1000 within 1
                                                    the maximum)
 t values               < :data:`MAX_T_S`           a clock time (epoch seconds), not t since
                                                    release
-speed |d(x, y)/dt|     <= :data:`MAX_SPEED`        x, y in mm (> :data:`MM_SPEED`, and
-                                                   speed / 1000 plausible)
+speed |d(x, y)/dt|     <= :data:`MAX_SPEED`        x, y in cm or mm (each named when
+                                                   it brings the speed within
+                                                   :data:`MIN_UNIT_SPEED` .. MAX_SPEED)
 spin |d theta/dt|      <= :data:`MAX_SPIN`         theta in degrees (spin / 57.3 plausible)
 theta steps            no jump of ~2 pi            theta wrapped to [0, 2 pi) or (-pi, pi]
 direction of travel    within :data:`MAX_SKEW_DEG` the rink's or an image's frame, not the
@@ -44,9 +45,13 @@ MAX_DURATION_S = 120.0
 MAX_T_S = 1e5
 #: Fastest plausible rock (m/s): a hard take-out leaves the hand at ~4.5 m/s.
 MAX_SPEED = 8.0
-#: Speed (m/s) beyond which x, y in millimetres is the explanation (between MAX_SPEED
-#: and this, a warning: x, y scaled wrong some other way, or t too fine).
-MM_SPEED = 40.0
+#: Slowest fastest-speed (m/s, the 90th percentile of a series' speeds) a wrong unit's
+#: explanation may give: beyond :data:`MAX_SPEED`, x, y are taken to be in the unit(s)
+#: of :data:`LENGTH_UNITS` that bring the speed between this and MAX_SPEED (none: a
+#: warning - scaled wrong some other way, or t too fine).
+MIN_UNIT_SPEED = 0.25
+#: Length units a series' x, y may be in by mistake, and their size in metres.
+LENGTH_UNITS = {"centimetres": 0.01, "millimetres": 0.001}
 #: Fastest plausible spin (rad/s): a spinner turns at most ~3 turns/s.
 MAX_SPIN = 25.0
 #: Most measured rows ``discover`` fits at once (all shots together).  Its memory
@@ -86,8 +91,8 @@ def check_units(series) -> list[str]:
     Raises
     ------
     SeriesError
-        One line naming the file and the column: t in ms or a clock time, x/y in mm,
-        theta in degrees or wrapped.
+        One line naming the file and the column: t in ms or a clock time, x/y in cm
+        or mm, theta in degrees or wrapped.
     """
     d = series.measured
     d = d[np.isfinite(d[["t", "x", "y"]].to_numpy(float)).all(axis=1)]
@@ -117,10 +122,14 @@ def check_units(series) -> list[str]:
     xy = d[["x", "y"]].to_numpy(float)
     speed = _rate(t, xy, lag)
     if speed > MAX_SPEED:
-        if speed > MM_SPEED and speed / 1000.0 <= MAX_SPEED:
+        # (a file in centimetres was once called millimetres, at 0.18 m/s "if divided by
+        # 1000": only a unit that gives a rock's speed is named, and both when both do)
+        units = [f"{unit} ({speed * size:.3g} m/s if multiplied by {size:g})"
+                 for unit, size in LENGTH_UNITS.items()
+                 if MIN_UNIT_SPEED <= speed * size <= MAX_SPEED]
+        if units:
             fail("x/y", f"the rock would move at {speed:.4g} m/s — x and y look like "
-                        f"millimetres ({speed / 1000:.3g} m/s if divided by 1000): the "
-                        "contract's x, y are in metres")
+                        f"{' or '.join(units)}: the contract's x, y are in metres")
         warnings.append(f"x/y: a speed of {speed:.3g} m/s is beyond a curling rock's "
                         f"(<= {MAX_SPEED:g} m/s): check the units of x, y and t")
     u, travel = _initial_direction(xy)

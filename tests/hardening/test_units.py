@@ -32,6 +32,8 @@ def _wrong(s: Series, mistake: str) -> Series:
         d["theta"] = np.degrees(d["theta"])
     elif mistake == "mm":
         d[["x", "y"]] *= 1000.0
+    elif mistake == "cm":
+        d[["x", "y"]] *= 100.0
     elif mistake == "ms":
         d["t"] *= 1000.0
     elif mistake == "wrapped":
@@ -48,6 +50,7 @@ def _wrong(s: Series, mistake: str) -> Series:
 
 
 CASES = {"degrees": ("theta", "degrees"), "mm": ("x/y", "millimetres"),
+         "cm": ("x/y", "centimetres"),
          "ms": ("'t'", "milliseconds"), "wrapped": ("theta", "wrapped"),
          "wrapped_pm_pi": ("theta", "wrapped"), "epoch": ("'t'", "clock time"),
          "rink_frame": ("x/y", "shot frame")}
