@@ -66,7 +66,8 @@ def _csv(tmp_path, text):
 
 
 @pytest.mark.parametrize("text, match", [
-    ("frame,t,x,y,ok\n0,0,0,0,1\n", "missing column"),
+    ("frame,t,x,ok\n0,0,0,1\n", "missing column"),
+    ("t,x,theta\n0,0,0\n", "missing column"),
     ("frame,t,x,y,theta,ok\n0,0,0,0,0,1\n1,0.03,abc,0,0,1\n", "non-numeric"),
     ("frame,t,x,y,theta,ok\n0,0,0,0,0,1\n1,0.0,0,0,0,1\n", "duplicate"),
     ("frame,t,x,y,theta,ok\n0,0.1,0,0,0,1\n1,0.05,0,0,0,1\n", "decreasing"),
@@ -85,6 +86,19 @@ def test_nan_in_measured_row_becomes_unmeasured_with_warning(tmp_path):
     s = read_series(p)
     assert s.data["ok"].tolist() == [1, 0, 1]
     assert any("row 3" in w for w in s.warnings)
+
+
+def test_a_table_of_t_x_y_alone_is_a_position_only_series(tmp_path):
+    """Another instrument's export (t, x, y; a row without a fix left empty) is read as
+    a position-only series, each column filled said in a warning."""
+    p = _csv(tmp_path, "t,x,y,quality\n0,0,0,9\n0.1,0.001,0.2,9\n0.2,,0.4,0\n0.3,0,0.6,9\n")
+    s = read_series(p)
+    assert s.data["frame"].tolist() == [0, 1, 2, 3]
+    assert s.data["ok"].tolist() == [1, 1, 0, 1]
+    assert s.data["theta"].isna().all() and not s.theta_measured
+    assert "quality" in s.data.columns   # (other columns kept)
+    for col in ("frame", "ok", "theta"):
+        assert any(f"no '{col}' column" in w and str(p) in w for w in s.warnings), col
 
 
 def test_infinite_theta_is_not_a_position_only_row(tmp_path):

@@ -116,14 +116,41 @@ def _plain(value) -> str:
     return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
 
 
+def _fill_optional(data: pd.DataFrame, name: str) -> tuple[pd.DataFrame, list[str]]:
+    """A table of ``t``, ``x``, ``y`` alone (another instrument's export) completed to
+    the contract's columns, each filled one said in a warning: ``frame`` numbered from
+    0, ``ok`` = 1 where x and y are given, ``theta`` empty (position-only).  Anything
+    else missing is left for :func:`validate`'s error."""
+    missing = [c for c in COLUMNS if c not in data.columns]
+    if not missing or not set(missing) <= {"frame", "theta", "ok"}:
+        return data, []
+    out, said = data.copy(), []
+    if "frame" in missing:
+        out["frame"] = np.arange(len(out))
+        said.append(f"{name}: no 'frame' column: rows numbered from 0")
+    if "ok" in missing:
+        xy = out[["x", "y"]].apply(pd.to_numeric, errors="coerce")
+        out["ok"] = np.isfinite(xy.to_numpy(float)).all(axis=1).astype(int)
+        said.append(f"{name}: no 'ok' column: every row with x and y taken as measured")
+    if "theta" in missing:
+        out["theta"] = np.nan
+        said.append(f"{name}: no 'theta' column: a position-only series (x, y; no "
+                    f"rotation)")
+    return out[[*COLUMNS, *[c for c in out.columns if c not in COLUMNS]]], said
+
+
 def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, list[str]]:
     """Check a series table against the contract; return a clean copy and warnings.
+
+    A table of ``t``, ``x``, ``y`` alone is completed (:func:`_fill_optional`, with a
+    warning per column filled).
 
     Raises
     ------
     SeriesError
         Missing columns, text in numbers, non-increasing ``t``, bad ``ok`` values.
     """
+    data, filled = _fill_optional(data, name)
     missing = [c for c in COLUMNS if c not in data.columns]
     if missing:
         sep = next((c for c in ";\t|" if len(data.columns) == 1
@@ -145,7 +172,7 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
                 raise SeriesError(f"non-numeric value {out[col].iloc[row]!r} in column "
                                   f"'{col}'{hint}", path=name, where=f"row {row + 2}")
             out[col] = num.astype(float)
-    warnings: list[str] = []
+    warnings: list[str] = list(filled)
     if len(out) == 0:
         raise SeriesError("no rows", path=name)
     for col in ("frame", "t", "ok"):

@@ -354,5 +354,8 @@ def series_stops(series) -> tuple[float | None, float | None, list[str]]:
     found = detect_stops(series.data, meta.get("fps"))
     t_tr = meta.get(keys[0], found.t_stop_translation)
     t_rot = meta.get(keys[1], found.t_stop_rotation)
+    def said(t):
+        return "none" if t is None else f"{t:.3f} s"
+
     return t_tr, t_rot, [f"{series.name}: no sidecar with stop times; stops detected from "
-                         f"the series (translation {t_tr}, rotation {t_rot} s)"]
+                         f"the series (translation {said(t_tr)}, rotation {said(t_rot)})"]
