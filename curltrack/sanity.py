@@ -12,9 +12,14 @@ duration (t span)      <= :data:`MAX_DURATION_S`   t in ms (span / 1000 within 1
                                                    the maximum)
 t values               < :data:`MAX_T_S`           a clock time (epoch seconds), not t since
                                                    release
-speed |d(x, y)/dt|     <= :data:`MAX_SPEED`        x, y in cm or mm (each named when
-                                                   it brings the speed within
-                                                   :data:`MIN_UNIT_SPEED` .. MAX_SPEED)
+speed |d(x, y)/dt|     <= :data:`MAX_SPEED`        x, y in cm, mm, feet or inches (each
+                                                   named when it brings speed and travel
+                                                   within range, speed >=
+                                                   :data:`MIN_UNIT_SPEED`)
+travel                 <= :data:`MAX_TRAVEL_M`     a warning naming the units that fit
+                                                   (a simulated take-out runs on past the
+                                                   boards; feet give a 28 m draw 92 m)
+first t while moving   <= :data:`MAX_MOVING_T_S`   t offset (not counted from release)
 spin |d theta/dt|      <= :data:`MAX_SPIN`         theta in degrees (spin / 57.3 plausible)
 theta steps            no jump of ~2 pi            theta wrapped to [0, 2 pi) or (-pi, pi]
 direction of travel    within :data:`MAX_SKEW_DEG` the rink's or an image's frame, not the
@@ -51,7 +56,15 @@ MAX_SPEED = 8.0
 #: warning - scaled wrong some other way, or t too fine).
 MIN_UNIT_SPEED = 0.25
 #: Length units a series' x, y may be in by mistake, and their size in metres.
-LENGTH_UNITS = {"centimetres": 0.01, "millimetres": 0.001}
+LENGTH_UNITS = {"centimetres": 0.01, "millimetres": 0.001, "feet": 0.3048,
+                "inches": 0.0254}
+#: Longest plausible travel (m): a sheet is 45.72 m from back board to back board.
+MAX_TRAVEL_M = 46.0
+#: Latest time (s) at which a rock can still move after its release (a slow draw
+#: stops by ~35 s): a series that starts moving later has t offset, not from release.
+MAX_MOVING_T_S = 60.0
+#: Speed (m/s) above which a rock is taken to be moving (for MAX_MOVING_T_S).
+MOVING_SPEED = 0.05
 #: Fastest plausible spin (rad/s): a spinner turns at most ~3 turns/s.
 MAX_SPIN = 25.0
 #: Most measured rows ``discover`` fits at once (all shots together).  Its memory
@@ -91,8 +104,8 @@ def check_units(series) -> list[str]:
     Raises
     ------
     SeriesError
-        One line naming the file and the column: t in ms or a clock time, x/y in cm
-        or mm, theta in degrees or wrapped.
+        One line naming the file and the column: t in ms, a clock time or offset,
+        x/y in cm, mm, feet or inches, theta in degrees or wrapped.
     """
     d = series.measured
     d = d[np.isfinite(d[["t", "x", "y"]].to_numpy(float)).all(axis=1)]
@@ -121,23 +134,35 @@ def check_units(series) -> list[str]:
         _check_theta(d[has_theta], fail, warnings)
     xy = d[["x", "y"]].to_numpy(float)
     speed = _rate(t, xy, lag)
+    reach = float(np.percentile(np.hypot(*(xy - xy[0]).T), 90))   # (robust to a wild row)
+    # (a file in centimetres was once called millimetres, at 0.18 m/s "if divided by
+    # 1000", and one in feet was fitted as a 92 m draw: only a unit that gives a rock's
+    # speed and travel is named, and every one that does)
+    units = [f"{unit} ({speed * size:.3g} m/s, {reach * size:.3g} m if multiplied by "
+             f"{size:g})" for unit, size in LENGTH_UNITS.items()
+             if MIN_UNIT_SPEED <= speed * size <= MAX_SPEED and reach * size <= MAX_TRAVEL_M]
     if speed > MAX_SPEED:
-        # (a file in centimetres was once called millimetres, at 0.18 m/s "if divided by
-        # 1000": only a unit that gives a rock's speed is named, and both when both do)
-        units = [f"{unit} ({speed * size:.3g} m/s if multiplied by {size:g})"
-                 for unit, size in LENGTH_UNITS.items()
-                 if MIN_UNIT_SPEED <= speed * size <= MAX_SPEED]
         if units:
-            fail("x/y", f"the rock would move at {speed:.4g} m/s — x and y look like "
-                        f"{' or '.join(units)}: the contract's x, y are in metres")
+            fail("x/y", f"the rock would move at {speed:.4g} m/s over {reach:.4g} m — x and "
+                        f"y look like {' or '.join(units)}: the contract's x, y are in "
+                        f"metres")
         warnings.append(f"x/y: a speed of {speed:.3g} m/s is beyond a curling rock's "
                         f"(<= {MAX_SPEED:g} m/s): check the units of x, y and t")
+    elif reach > MAX_TRAVEL_M:
+        # a warning, not an error: a simulated take-out runs on past the back boards
+        warnings.append(f"x/y: the rock travels {reach:.3g} m, beyond a sheet's length "
+                        f"({MAX_TRAVEL_M:g} m): if x, y are not in metres, they may be in "
+                        f"{' or '.join(units) or 'another unit'}")
+    if t.min() > MAX_MOVING_T_S and speed > MOVING_SPEED:
+        fail("t", f"the rock moves at {speed:.3g} m/s at t = {t.min():.5g} s, later than any "
+                  f"shot after its release (<= {MAX_MOVING_T_S:g} s): t looks offset - it "
+                  f"counts from the release; subtract the release time")
     u, travel = _initial_direction(xy)
     if travel >= 0.5:   # (a pure rotation, or too short to say)
         _check_direction(xy, u, fail)   # (after the units: x alone in mm turns it too)
         if has_theta.sum() >= 3:
             _check_curl_side(xy, u, travel, d["theta"].to_numpy(float)[has_theta], warnings)
-    return warnings
+    return [f"{path}: {w}" if path else w for w in warnings]
 
 
 def _check_direction(xy, u, fail) -> None:

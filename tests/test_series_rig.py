@@ -66,7 +66,7 @@ def _csv(tmp_path, text):
 
 
 @pytest.mark.parametrize("text, match", [
-    ("frame,t,x,ok\n0,0,0,1\n", "missing column"),
+    ("frame,t,x,y,ok\n0,0,0,0,1\n", "missing column"),
     ("t,x,theta\n0,0,0\n", "missing column"),
     ("frame,t,x,y,theta,ok\n0,0,0,0,0,1\n1,0.03,abc,0,0,1\n", "non-numeric"),
     ("frame,t,x,y,theta,ok\n0,0,0,0,0,1\n1,0.0,0,0,0,1\n", "duplicate"),
@@ -99,6 +99,9 @@ def test_a_table_of_t_x_y_alone_is_a_position_only_series(tmp_path):
     assert "quality" in s.data.columns   # (other columns kept)
     for col in ("frame", "ok", "theta"):
         assert any(f"no '{col}' column" in w and str(p) in w for w in s.warnings), col
+    p.write_text("t,x,y,theta\n0,0,0,0\n0.1,0.001,0.2,0.1\n0.2,0,0.4,0.2\n")
+    s = read_series(p)
+    assert s.theta_measured and s.data["theta"].tolist() == [0, 0.1, 0.2]
 
 
 def test_infinite_theta_is_not_a_position_only_row(tmp_path):

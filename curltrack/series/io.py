@@ -117,12 +117,14 @@ def _plain(value) -> str:
 
 
 def _fill_optional(data: pd.DataFrame, name: str) -> tuple[pd.DataFrame, list[str]]:
-    """A table of ``t``, ``x``, ``y`` alone (another instrument's export) completed to
-    the contract's columns, each filled one said in a warning: ``frame`` numbered from
-    0, ``ok`` = 1 where x and y are given, ``theta`` empty (position-only).  Anything
-    else missing is left for :func:`validate`'s error."""
+    """A table of ``t``, ``x``, ``y`` (and ``theta``) without the contract's ``frame``
+    and ``ok`` (another instrument's export) completed to the contract's columns, each
+    filled one said in a warning: ``frame`` numbered from 0, ``ok`` = 1 where x and y
+    are given, ``theta`` empty (position-only) when absent.  A table with ``frame`` or
+    ``ok`` is one of the contract's, and any column it lacks is :func:`validate`'s
+    error."""
     missing = [c for c in COLUMNS if c not in data.columns]
-    if not missing or not set(missing) <= {"frame", "theta", "ok"}:
+    if not {"frame", "ok"} <= set(missing) or not set(missing) <= {"frame", "theta", "ok"}:
         return data, []
     out, said = data.copy(), []
     if "frame" in missing:
@@ -142,8 +144,8 @@ def _fill_optional(data: pd.DataFrame, name: str) -> tuple[pd.DataFrame, list[st
 def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, list[str]]:
     """Check a series table against the contract; return a clean copy and warnings.
 
-    A table of ``t``, ``x``, ``y`` alone is completed (:func:`_fill_optional`, with a
-    warning per column filled).
+    A table of ``t``, ``x``, ``y`` (and ``theta``) without ``frame`` and ``ok`` is
+    completed (:func:`_fill_optional`, with a warning per column filled).
 
     Raises
     ------

@@ -34,6 +34,8 @@ def _wrong(s: Series, mistake: str) -> Series:
         d[["x", "y"]] *= 1000.0
     elif mistake == "cm":
         d[["x", "y"]] *= 100.0
+    elif mistake == "offset":   # t from when the instrument started, not the release
+        d["t"] += float(np.random.default_rng(len(d)).uniform(100.0, 5000.0))
     elif mistake == "ms":
         d["t"] *= 1000.0
     elif mistake == "wrapped":
@@ -50,7 +52,7 @@ def _wrong(s: Series, mistake: str) -> Series:
 
 
 CASES = {"degrees": ("theta", "degrees"), "mm": ("x/y", "millimetres"),
-         "cm": ("x/y", "centimetres"),
+         "cm": ("x/y", "centimetres"), "offset": ("'t'", "offset"),
          "ms": ("'t'", "milliseconds"), "wrapped": ("theta", "wrapped"),
          "wrapped_pm_pi": ("theta", "wrapped"), "epoch": ("'t'", "clock time"),
          "rink_frame": ("x/y", "shot frame")}
@@ -89,8 +91,21 @@ def test_unit_mistake_is_caught(cli, tmp_path, seed, mistake, command):
         raise AssertionError(f"seed {seed}: {exc}") from None
 
 
+def test_a_draw_in_feet_is_warned_of(seed):
+    """A draw in feet moves at a rock's speed (1.8-2.2 m/s is 5.9-7.2 ft/s) but runs
+    longer than a sheet: a warning that names feet and the travel they give."""
+    rng = np.random.default_rng(seed)
+    s = _shot(seed, v0=rng.uniform(1.8, 2.2))
+    d = s.data.copy()
+    d[["x", "y"]] /= 0.3048
+    said = check_units(Series(d, s.meta))
+    assert any("beyond a sheet" in w and "feet" in w for w in said), (seed, said)
+
+
 def test_right_units_never_flagged(seed):
-    """A random sweep of 40 simulated shots (draws, fast take-outs, spinners, 30/60 fps)."""
+    """A random sweep of 40 simulated shots (draws, fast take-outs, spinners, 30/60 fps):
+    nothing is said, but that a take-out simulated past the back boards (46 m) runs
+    beyond a sheet."""
     rng = np.random.default_rng(seed)
     for i in range(40):
         kind = rng.integers(3)
@@ -98,7 +113,11 @@ def test_right_units_never_flagged(seed):
         omega0 = rng.choice([-1, 1]) * [rng.uniform(0.2, 4.0), rng.uniform(0.2, 3.0),
                                         rng.uniform(3.0, 18.0)][kind]
         s = _shot(int(rng.integers(2**31)), v0=v0, omega0=omega0)
-        assert check_units(s) == [], (seed, i, v0, omega0)
+        said = check_units(s)
+        xy = s.measured[["x", "y"]].to_numpy()
+        if np.percentile(np.hypot(*(xy - xy[0]).T), 90) > 46.0:
+            said = [w for w in said if "beyond a sheet" not in w]
+        assert said == [], (seed, i, v0, omega0)
 
 
 def test_skewed_throw_within_the_fits_range_is_not_flagged(seed):
