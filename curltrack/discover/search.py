@@ -389,6 +389,11 @@ STEP_MIN_ROWS = 3
 STEP_DRAWS = 400
 
 
+def _jump_starts(m: int) -> np.ndarray:
+    """Rows a jump is scanned from, of ``m`` (:data:`STEP_STARTS`, evenly spread)."""
+    return np.unique(np.linspace(1, m - 1, min(STEP_STARTS, m - 1)).astype(int))
+
+
 def _jump_shapes(t: np.ndarray) -> list[tuple[int, int]]:
     """(first row, row after the last) of every jump scanned on rows at times ``t``.
 
@@ -400,7 +405,7 @@ def _jump_shapes(t: np.ndarray) -> list[tuple[int, int]]:
     """
     m, hold = t.size, STEP_HOLD_S[0]
     shapes = []
-    for a in np.unique(np.linspace(1, m - 1, min(STEP_STARTS, m - 1)).astype(int)):
+    for a in _jump_starts(m):
         if t[a] - t[0] < hold:
             continue
         if t[-1] - t[a] >= hold and m - a >= STEP_MIN_ROWS:
@@ -408,6 +413,48 @@ def _jump_shapes(t: np.ndarray) -> list[tuple[int, int]]:
         ends = np.searchsorted(t, t[a] + np.array(STEP_HOLD_S))
         shapes += [(a, int(b)) for b in np.unique(ends) if a + STEP_MIN_ROWS <= b < m]
     return shapes
+
+
+def _jump_columns(base: JointModel, i: int, Q0s: np.ndarray, shapes, m: int):
+    """Whitened columns ``E`` of the jumps ``(first row, row after the last)`` of
+    segment ``i`` (of ``m`` rows) and their squared norms off the fit's directions
+    ``Q0s`` (the fit's orthonormal Jacobian basis on the segment's rows; inf where a
+    jump lies in them)."""
+    raw = np.zeros((m, len(shapes)))
+    for k, (a, b) in enumerate(shapes):
+        raw[a:b, k] = 1.0
+    E = base.whiten_segment(i, raw)
+    proj = Q0s.T @ E
+    norm2 = np.sum(E * E, axis=0) - np.sum(proj * proj, axis=0)
+    return E, np.where(norm2 > 1e-8 * np.sum(E * E, axis=0), norm2, np.inf)
+
+
+def _refined_jump(base, i, Q0s, r_perp, t, a, b) -> tuple[int, int]:
+    """The jump ``(a, b)`` found on the scan's grid of starts, moved to the best row
+    nearby: every start between the grid's neighbours of ``a`` and, for a hold, every
+    end within the shortest hold of ``b`` (the grid scans every other row of a 24 s
+    10 Hz series - a jump at 14.40 s was placed at 12.56 s, across a gap)."""
+    m, hold = t.size, STEP_HOLD_S[0]
+    grid = _jump_starts(m)
+    k = int(np.searchsorted(grid, a))
+    lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+    shapes = []
+    for a2 in range(int(lo), int(hi) + 1):
+        if t[a2] - t[0] < hold or m - a2 < STEP_MIN_ROWS:
+            continue
+        if b == m:
+            if t[-1] - t[a2] >= hold:
+                shapes.append((a2, m))
+            continue
+        for b2 in range(int(np.searchsorted(t, t[b] - hold)),
+                        int(np.searchsorted(t, t[b] + hold, side="right"))):
+            if a2 + STEP_MIN_ROWS <= b2 < m and t[b2] - t[a2] >= hold:
+                shapes.append((a2, b2))
+    gains = []
+    for k in range(0, len(shapes), 256):   # (bounded memory)
+        E, norm2 = _jump_columns(base, i, Q0s, shapes[k:k + 256], m)
+        gains.append((E.T @ r_perp) ** 2 / norm2)
+    return shapes[int(np.argmax(np.concatenate(gains)))] if shapes else (a, b)
 
 
 def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None:
@@ -446,8 +493,12 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
         Bonferroni's alone when the gain does not clear it, the flips then not drawn),
         ``variance`` (the segment's whitened residuals' variance without the jump, at
         least 1: for the record), ``found`` (gain above the threshold), ``shot``,
-        ``coord``, ``t_from_s``, ``t_to_s`` (None: to the end), ``n_scanned``; None
-        without position segments.
+        ``coord``, ``t_from_s`` (the first row that jumped), ``t_before_s`` (the row
+        before it: the jump happened between the two, which a gap in the rows can set
+        seconds apart), ``t_to_s`` (the first row back; None: to the end),
+        ``n_scanned``; None without position segments.  The jump found on the scan's
+        grid is placed on the best row nearby (:func:`_refined_jump`); ``gain`` and
+        ``found`` are the grid's, whose chance level the draws measure.
     """
     from scipy import stats
 
@@ -464,14 +515,7 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
         shapes = _jump_shapes(t)
         if not shapes:
             continue
-        raw = np.zeros((m, len(shapes)))
-        for k, (a, b) in enumerate(shapes):
-            raw[a:b, k] = 1.0
-        E = base.whiten_segment(i, raw)
-        proj = Q0[sl].T @ E
-        norm2 = np.sum(E * E, axis=0) - np.sum(proj * proj, axis=0)
-        ok = norm2 > 1e-8 * np.sum(E * E, axis=0)
-        norm2 = np.where(ok, norm2, np.inf)
+        E, norm2 = _jump_columns(base, i, Q0[sl], shapes, m)
         scans.append((sl, E, norm2))
         proj_r = E.T @ r_perp[sl]
         gain = proj_r ** 2 / norm2
@@ -481,12 +525,16 @@ def instrument_step(base: JointModel, fit: FitOut, seed: int = 0) -> dict | None
             jump = (sl, E[:, q] * (proj_r[q] / norm2[q]))
             dof = m * (fit.n - len(fit.free)) / fit.n - 1.0
             var = max((float(np.sum(r_perp[sl] ** 2)) - gain[q]) / max(dof, 1.0), 1.0)
-            best = {"gain": float(gain[q]), "shot": j, "coord": c, "t_from_s": float(t[a]),
-                    "t_to_s": float(t[b]) if b < m else None,
+            best = {"gain": float(gain[q]), "shot": j, "coord": c,
                     "delta_bic": float(gain[q] - (2 if b == m else 3) * np.log(fit.n)),
                     "variance": var}
+            where = (i, sl, t, a, b)
     if best is None:
         return None
+    i, sl, t, a, b = where
+    a, b = _refined_jump(base, i, Q0[sl], r_perp[sl], t, a, b)
+    best.update(t_before_s=float(t[a - 1]), t_from_s=float(t[a]),
+                t_to_s=float(t[b]) if b < t.size else None)
     best["n_scanned"] = int(sum(E.shape[1] for _, E, _ in scans))
     bonferroni = float(stats.chi2.isf(STEP_LEVEL / best["n_scanned"], 1))
     if best["gain"] <= bonferroni:   # not found whatever the flips say: not drawn
