@@ -13,7 +13,9 @@ rendered with its truth and rig beside it in DIR, then tracked with
 - ``max_mm``: the largest position error of an ``ok`` row;
 - ``z_xy`` / ``z_theta``: standard deviation of error / reported sigma (x and y errors
   over ``sigma_xy``; theta over ``sigma_theta``) - 1 when the sigmas are honest;
-- ``stop_err``: tracked minus true translation stop frame.
+- ``stop_err``: tracked minus true translation stop frame;
+- ``wrong``: ``ok`` rows off by both more than 10 mm and more than 5 sigma (the
+  issue's wrong row: 0 is the aim).
 
 Interlaced video: a tracked series with a ``field`` column is compared field by field;
 one without (one row per frame) against the truth of each frame's first field (the
@@ -53,6 +55,8 @@ def score(series, truth) -> dict:
         if "sigma_xy" in m.columns:
             sig = m["sigma_xy"][ok]
             out["z_xy"] = float(np.nanstd(np.r_[dx / sig, dy / sig]))
+            # the "wrong row": an ok row both > 10 mm and > 5 sigma off
+            out["wrong"] = int(((e > 0.010) & (e > 5 * sig)).sum())
         if "sigma_theta" in m.columns:
             out["z_theta"] = float(np.nanstd(dth / m["sigma_theta"][ok]))
     a, b = series.meta.get("stop_frame_translation"), truth.meta.get("stop_frame_translation")
@@ -105,7 +109,7 @@ COLS = [("i", "#", "{}"), ("kind", "kind", "{}"), ("size", "size", "{}"),
         ("codec", "codec", "{}"), ("artefacts", "artefacts", "{}"),
         ("measured", "measured", "{:.0%}"), ("pos_rms_mm", "pos RMS mm", "{:.2f}"),
         ("theta_rms_deg", "θ RMS °", "{:.3f}"), ("max_mm", "max ok err mm", "{:.1f}"),
-        ("z_xy", "std e/σ xy", "{:.2f}"), ("z_theta", "std e/σ θ", "{:.2f}"),
+        ("wrong", "wrong rows", "{}"), ("z_xy", "std e/σ xy", "{:.2f}"), ("z_theta", "std e/σ θ", "{:.2f}"),
         ("stop_err", "stop Δframe", "{:+d}"), ("error", "error", "{}")]
 
 

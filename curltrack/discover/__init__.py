@@ -52,7 +52,7 @@ from . import scoring
 from .candidates import build_candidates, untested
 from .model import JointModel, _shot_of
 from .results import DiscoveryReport, Finding
-from .residuals import structure_tests
+from .residuals import smooth_misfit, structure_tests
 from .search import (NONLINEAR_MARGIN, best_extension, folds_shot,
                      folds_time, heldout, profile_extension, refine_candidate, rescore,
                      residual_noise, score_candidate, segments_of)
@@ -158,8 +158,10 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     noise0 = residual_noise(base, fit0.r)
     for (j, c, _), (infl, tau) in zip(base.segments, noise0):
         shots[j].noise[c] = replace(shots[j].noise[c], inflation=infl, tau=tau)
+    smooth = smooth_misfit(base, fit0)
     noise_warnings = persistent_noise_warnings(
-        [(shots[j].name, c, infl) for (j, c, _), (infl, _) in zip(base.segments, noise0)])
+        [(shots[j].name, c, infl) for (j, c, _), (infl, _) in zip(base.segments, noise0)],
+        smooth={(shots[m["shot"]].name, m["coord"]) for m in smooth})
     before = structure_tests(segments_of(base, fit0, noise0))
     f_time = folds_time(base)
     f_shot = folds_shot(base) if len(shots) > 1 else None
@@ -237,7 +239,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     return build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds,
                         not_tested=untested(shots, baseline),
                         warnings=[*unit_warnings, *thinned, *curl_warnings, *outlier_warnings,
-                                  *spread_warnings, *noise_warnings])
+                                  *spread_warnings, *noise_warnings], smooth=smooth)
 
 
 #: the per-shot exponents are taken when they lower the BIC by more than this ("very
@@ -432,14 +434,23 @@ def drop_isolated_outliers(model: JointModel, fit) -> list[str]:
 PERSISTENT_NOISE_WARN = 10.0
 
 
-def persistent_noise_warnings(inflations) -> list[str]:
+def persistent_noise_warnings(inflations, smooth=frozenset()) -> list[str]:
     """A warning per (shot, coordinate) whose residuals' low-frequency noise exceeds
     :data:`PERSISTENT_NOISE_WARN` times white noise's; ``inflations`` = [(shot name,
-    coordinate, inflation)]."""
+    coordinate, inflation)]; ``smooth``: the (shot name, coordinate) whose misfit is
+    smooth (:func:`~curltrack.discover.residuals.smooth_misfit`): the model's, not an
+    instrument's."""
+    def why(name, coord):
+        if (name, coord) in smooth:
+            return ("smooth, not an instrument's jumps: the baseline's misfit, far above "
+                    "the rows' scatter - the model does not describe this coordinate; "
+                    "every finding is judged against it, so a name is hard to reach")
+        return ("errors of the instrument that persist for seconds, e.g. steps: every "
+                "finding is judged against it, but a verdict other than none on such data "
+                "may still be the instrument, not the rock")
+
     return [f"{name}: {coord}: the residuals hold {infl:.0f}x the low-frequency noise of "
-            "white noise (errors of the instrument that persist for seconds, e.g. steps): "
-            "every finding is judged against it, but a verdict other than none on such "
-            "data may still be the instrument, not the rock"
+            f"white noise ({why(name, coord)})"
             for name, coord, infl in inflations if infl > PERSISTENT_NOISE_WARN]
 
 

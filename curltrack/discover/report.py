@@ -223,11 +223,13 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds, base_jump=None) -> Findin
 
 
 def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=None,
-                 not_tested=None, warnings=()) -> DiscoveryReport:
+                 not_tested=None, warnings=(), smooth=()) -> DiscoveryReport:
     """Assemble the report and decide the verdict (rule in :mod:`curltrack.discover`).
 
     ``cand_bounds`` maps a candidate's name to its parameters at a bound (list of str);
-    ``warnings`` come first in the report's (the input's: units, thinning).
+    ``warnings`` come first in the report's (the input's: units, thinning); ``smooth``:
+    the baseline's smooth misfits (:func:`~curltrack.discover.residuals.smooth_misfit`),
+    which make a verdict that names nothing ``unexplained``, not ``none``.
     """
     n = fit0.n
     rms0 = _rms_by_coord(base, fit0.r_raw)
@@ -279,7 +281,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
         elif sc.structure_after.structured:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name)
-        elif ambiguous and (before.structured or better):
+        elif ambiguous and (before.structured or better or smooth):
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
                                ambiguous=([] if better else [sc.name]) + ambiguous)
@@ -302,7 +304,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                                           evidence=g.evidence + "; not named: " + why)
         else:
             verdict = sc.name
-    elif before.structured or base_bound or any(_at_bound(f) for _, f in blocked):
+    elif before.structured or base_bound or smooth or any(_at_bound(f) for _, f in blocked):
         # an extension that clears its threshold but is not chosen (its residuals stay
         # structured, or another explains it alike) does not turn residuals that look
         # like noise into 'unexplained': under the real-data noise classes that would
@@ -315,6 +317,10 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
         # noise scale then took for the instrument's: 'none' was a confident wrong answer)
         verdict = "unexplained"
         unexplained = dict(before.where or {}, after_model="baseline")
+        if smooth:
+            unexplained["smooth_misfit"] = list(smooth)
+            if not before.structured:
+                unexplained.update(shot=smooth[0]["shot"], coord=smooth[0]["coord"])
         if base_bound:
             unexplained["baseline_at_bound"] = base_bound
         if len(supported) > 1:   # extensions that explain it alike: no one description
@@ -333,6 +339,13 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                         " and ".join(f"{o.name} (delta-BIC {o.delta_bic:.1f})" for o in alike)
                         + f": they differ by less than {AMBIGUITY_MARGIN:g} (2 ln Bayes "
                           f"factor), too little to name one")
+        elif unexplained.get("smooth_misfit") and not before.structured:
+            evidence = "; ".join(
+                f"the baseline misses shot {m['shot']}'s {m['coord']} by {m['rms']:.3g} RMS, "
+                f"{m['ratio']:.1f} times its rows' scatter ({m['sigma']:.3g}), smoothly"
+                for m in unexplained["smooth_misfit"]) + (
+                " (m or rad): the residuals do not jump as an instrument's errors do, so the "
+                "model does not describe the shot, and no candidate explains it")
         else:
             evidence = (f"residuals of the {best_model_name or 'baseline'} model stay "
                         f"structured (a free mean in 10 time bins per series gains "

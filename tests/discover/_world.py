@@ -274,3 +274,39 @@ def make_peer_law_world(rng, noise: str = "white", n_shots: int = 2):
                                              ice["phi_t"], a_th, ice["a_T"], {"fric": fric})
         shots.append(as_series(t, x, y, th, t_tr, t_rot, rng, noise=noise))
     return shots, {"family": "friction_law", "mu_c": mu_c, "mu_1": mu_1, "mu": law}
+
+
+def make_peer_physics_world(rng, noise: str = "white"):
+    """One shot as a peer simulator with physics of its own would draw it - none of the
+    paper's laws: friction a constant plus a term that decays with speed, mu(u) = mu_0 +
+    mu_1 exp(-u / u_0); a curl that grows as the rock slows, k / (u + 0.3 m/s); a spin
+    that decays as |omega|^0.4 / (u + 0.2 m/s) (integrated here, 30 fps, to the stop
+    and 1 s on, the spin held where the slide ends).
+
+    Returns (series, truth).
+    """
+    v0 = float(rng.uniform(1.9, 2.3))
+    w0 = float(rng.choice([-1, 1]) * rng.uniform(0.8, 2.5))
+    mu0, mu1, u0 = rng.uniform(0.006, 0.009), rng.uniform(0.002, 0.006), rng.uniform(0.3, 0.8)
+    k = float(rng.uniform(0.002, 0.005))
+
+    def rhs(t, z):
+        x, y, vx, vy, th, w = z
+        u = math.hypot(vx, vy)
+        if u < 1e-4:
+            return [0.0, 0.0, 0.0, 0.0, w, 0.0]
+        a = G * (mu0 + mu1 * math.exp(-u / u0))
+        lat = -math.copysign(k / (u + 0.3), w) if abs(w) > 1e-3 else 0.0
+        ex, ey = vx / u, vy / u
+        dw = -math.copysign(0.02 * abs(w) ** 0.4 / (u + 0.2), w) if abs(w) > 1e-3 else 0.0
+        return [vx, vy, -a * ex + lat * ey, -a * ey - lat * ex, w, dw]
+
+    stop = lambda t, z: math.hypot(z[2], z[3]) - 1e-3  # noqa: E731
+    stop.terminal, stop.direction = True, -1
+    sol = solve_ivp(rhs, (0.0, 120.0), [0.0, 0.0, 0.0, v0, 0.0, w0], events=stop,
+                    dense_output=True, rtol=1e-9, atol=1e-11)
+    t_end = float(sol.t[-1])
+    t = np.arange(int((t_end + 1.0) * 30.0) + 1) / 30.0
+    z = sol.sol(np.minimum(t, t_end))
+    return (as_series(t, z[0], z[1], z[4], t_end, t_end, rng, noise=noise),
+            {"v0": v0, "omega0": w0, "mu0": mu0, "mu1": mu1, "u0": u0, "k": k})

@@ -356,7 +356,9 @@ def test_a_patch_refit_widens_a_narrow_deep_start():
     wide stretches poorly far from the null: factor 0.68 over 3 m under heavy noise
     was refitted as 0.051 over 0.86 m and a pick named, seed 2026112750) ends at the
     truth: the refit is also started from the same deficit spread 2-4x wider
-    (:attr:`EffectDef.respread`).  Random patch, noise class and rate per run."""
+    (:attr:`EffectDef.respread`).  Random patch, noise class and rate per run.  (A
+    refit stopped at 3.6 m of a 4.6 m patch, 122 over the truth's chi-square, seed
+    1341393448: started 1.5x wider too, it ends at the truth.)"""
     from curltrack.discover.candidates import build_candidates
     from curltrack.discover.model import JointModel
     from curltrack.discover.search import FIT_MAX_NFEV, _respread
@@ -392,8 +394,19 @@ def test_a_patch_refit_widens_a_narrow_deep_start():
     what = f"seed {seed} {inst}: truth {a:.2f}-{b:.2f} m x{f:.3f}"
     assert fit2.chi2 <= fit1.chi2, what
     got = sorted((fit2.values["y_start_m"], fit2.values["y_end_m"]))
-    assert abs(got[0] - a) < 0.3 and abs(got[1] - b) < 0.3, (what, got, fit2.values["factor"])
-    assert abs(fit2.values["factor"] - f) < 0.05, (what, fit2.values["factor"])
+    # as low as the fit at the truth's place (the rest fitted), within the 99 % level of
+    # chi-square with 3 dof: a patch's ends and factor trade against each other, and
+    # where the data hardly tell them apart (4 in chi-square for ends 0.3-0.4 m inside
+    # the truth's, seed 2456930937) no fixed tolerance in metres is honest
+    mt = JointModel(sh, "paper", cand)
+    mt.values.update(fit2.values)
+    mt.values.update(y_start_m=a, y_end_m=b, factor=f)
+    mt.free = [p for p in free if p not in ("y_start_m", "y_end_m", "factor")]
+    at_truth = mt.fit(max_nfev=FIT_MAX_NFEV)
+    assert fit2.chi2 <= at_truth.chi2 + 11.34, (what, got, fit2.values["factor"],
+                                                 fit2.chi2, at_truth.chi2)
+    # and not the narrow deep twin it started from
+    assert 0.7 < (got[1] - got[0]) / (b - a) < 1.4, (what, got, fit2.values["factor"])
 
 
 def test_a_strong_wide_patch_under_heavy_noise_is_not_named_a_pick():
