@@ -118,6 +118,11 @@ def check_units(series) -> list[str]:
     def fail(column, message):
         raise SeriesError(message, path=path, where=f"column '{column}'")
 
+    before = int(np.count_nonzero(t < 0))
+    if before:
+        warnings.append(f"t: {before} measured row(s) before t = 0 (the release) are not "
+                        f"used: t counts from the release, and the rock in the hand is not "
+                        f"the shot")
     span = float(t.max() - t.min())
     if t.max() > MAX_T_S:
         fail("t", f"values up to {t.max():.4g} look like a clock time (e.g. seconds since "

@@ -102,6 +102,24 @@ def test_a_draw_in_feet_is_warned_of(seed):
     assert any("beyond a sheet" in w and "feet" in w for w in said), (seed, said)
 
 
+def test_rows_before_the_release_are_said_to_be_left_out(seed):
+    """Rows with t < 0 (an instrument that saw the rock in the hand) are not fitted: a
+    warning says how many, and the fit is the same as without them."""
+    from curltrack.fit import fit_series
+
+    rng = np.random.default_rng(seed)
+    s = _shot(seed, v0=rng.uniform(1.2, 2.2))
+    k = int(rng.integers(5, 40))
+    pre = pd.DataFrame({"frame": np.arange(-k, 0), "t": np.arange(-k, 0) / 30.0,
+                        "x": 0.0, "y": np.linspace(-0.2, -0.01, k), "theta": 0.0, "ok": 1})
+    d = pd.concat([pre, s.data], ignore_index=True)
+    d["frame"] = np.arange(len(d))
+    said = check_units(Series(d, s.meta))
+    assert any(f"{k} measured row(s) before t = 0" in w for w in said), (seed, said)
+    a, b = fit_series(Series(d, s.meta)), fit_series(s)
+    assert a.values["lambda_y"] == pytest.approx(b.values["lambda_y"], rel=1e-9), seed
+
+
 def test_right_units_never_flagged(seed):
     """A random sweep of 40 simulated shots (draws, fast take-outs, spinners, 30/60 fps):
     nothing is said, but that a take-out simulated past the back boards (46 m) runs
