@@ -104,6 +104,23 @@ def test_a_table_of_t_x_y_alone_is_a_position_only_series(tmp_path):
     assert s.theta_measured and s.data["theta"].tolist() == [0, 0.1, 0.2]
 
 
+def test_column_names_with_spaces_or_in_upper_case_are_read(tmp_path):
+    """``frame, t, x`` (spaces after the commas) is the contract's table; ``T``, ``X``
+    in upper case too, said in a warning; a name two columns could take is not
+    guessed."""
+    p = _csv(tmp_path, "frame, t, x, y, theta, ok, sigma_xy\n0,0,0,0,0,1,0.002\n"
+                       "1,0.1,0,0.2,0.1,1,0.002\n")
+    s = read_series(p)
+    assert s.data["y"].tolist() == [0, 0.2] and "sigma_xy" in s.data.columns
+    assert not any("read as" in w for w in s.warnings)
+    p.write_text("Frame,T,X,Y,Theta,OK\n0,0,0,0,0,1\n1,0.1,0,0.2,0.1,1\n")
+    s = read_series(p)
+    assert s.data["t"].tolist() == [0, 0.1]
+    assert any("read as" in w and "T" in w and str(p) in w for w in s.warnings)
+    p.write_text("frame,t,X,x2,Y,y,theta,ok\n0,0,0,0,0,0,0,1\n")
+    assert read_series(p).data["y"].tolist() == [0]   # (y given: Y is another column)
+
+
 def test_infinite_theta_is_not_a_position_only_row(tmp_path):
     p = _csv(tmp_path, "frame,t,x,y,theta,ok\n0,0,0,0,0,1\n1,0.03,0,0,inf,1\n2,0.06,0,0,,1\n")
     s = read_series(p)

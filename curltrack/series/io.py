@@ -116,6 +116,31 @@ def _plain(value) -> str:
     return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
 
 
+def _contract_names(data: pd.DataFrame, name: str) -> tuple[pd.DataFrame, list[str]]:
+    """Column names as the contract writes them: spaces around a name dropped (a CSV
+    written ``frame, t, x``), and a contract column named in another case (``T``,
+    ``X``) read as it, said in a warning - where no other column takes that name."""
+    known = [*COLUMNS, *OPTIONAL_COLUMNS]
+    names = [c.strip() if isinstance(c, str) else c for c in data.columns]
+    said = []
+    lower = [c.lower() if isinstance(c, str) else c for c in names]
+    cased = {}
+    for i, c in enumerate(names):
+        k = lower[i]
+        if (c not in known and k in known and k not in names
+                and lower.count(k) == 1):
+            cased[c] = k
+            names[i] = k
+    if cased:
+        said.append(f"{name}: column(s) {', '.join(cased)} read as "
+                    f"{', '.join(cased.values())} (the contract's names are lower case)")
+    if names == list(data.columns):
+        return data, said
+    out = data.copy()
+    out.columns = names
+    return out, said
+
+
 def _fill_optional(data: pd.DataFrame, name: str) -> tuple[pd.DataFrame, list[str]]:
     """A table of ``t``, ``x``, ``y`` (and ``theta``) without the contract's ``frame``
     and ``ok`` (another instrument's export) completed to the contract's columns, each
@@ -152,7 +177,9 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
     SeriesError
         Missing columns, text in numbers, non-increasing ``t``, bad ``ok`` values.
     """
+    data, renamed = _contract_names(data, name)
     data, filled = _fill_optional(data, name)
+    filled = renamed + filled
     missing = [c for c in COLUMNS if c not in data.columns]
     if missing:
         sep = next((c for c in ";\t|" if len(data.columns) == 1
