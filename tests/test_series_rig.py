@@ -121,6 +121,12 @@ def test_column_names_with_spaces_or_in_upper_case_are_read(tmp_path):
     assert read_series(p).data["y"].tolist() == [0]   # (y given: Y is another column)
 
 
+def test_ok_written_as_true_false_is_read(tmp_path):
+    p = _csv(tmp_path, "frame,t,x,y,theta,ok\n0,0,0,0,0,True\n1,0.1,,0.2,0.1,False\n"
+                       "2,0.2,0,0.4,0.2,true\n")
+    assert read_series(p).data["ok"].tolist() == [1, 0, 1]
+
+
 def test_infinite_theta_is_not_a_position_only_row(tmp_path):
     p = _csv(tmp_path, "frame,t,x,y,theta,ok\n0,0,0,0,0,1\n1,0.03,0,0,inf,1\n2,0.06,0,0,,1\n")
     s = read_series(p)

@@ -192,6 +192,9 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
     out = data.copy()
     for col in out.columns:
         if col in COLUMNS or col in OPTIONAL_COLUMNS:
+            if col == "ok" and out[col].dtype != float:   # (True/False, as pandas writes)
+                out[col] = out[col].map(lambda v: {"true": 1, "false": 0}.get(
+                    str(v).strip().lower(), v))
             num = pd.to_numeric(out[col], errors="coerce")
             bad = num.isna() & out[col].notna() & (out[col].astype(str).str.strip() != "")
             if bad.any():
