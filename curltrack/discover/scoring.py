@@ -76,8 +76,9 @@ def detection_limits(J0, effect_cols, threshold: float, k, n: int) -> list:
 
     Alone at a scan location, a size ``s`` of one parameter (its whitened column ``e``
     per unit, the part orthogonal to the baseline ``e_perp``) gains chi-square
-    ``s^2 |e_perp|^2`` on noise-free data; its delta-BIC clears ``threshold`` from
-    ``s_min = sqrt((threshold + k log n) / |e_perp|^2)``.  An effect that size or
+    ``s^2 |e_perp|^2`` on noise-free data; its delta-BIC clears ``threshold`` (and 0:
+    a finding needs both) from ``s_min = sqrt((max(threshold, 0) + k log n) /
+    |e_perp|^2)``.  An effect that size or
     smaller cannot be told from the noise - a ``none`` says nothing about it - and one
     a few times larger clears the threshold in most noise draws (about half at
     ``s_min``).  The bootstrap's threshold and the columns scale alike with the noise,
@@ -100,7 +101,11 @@ def detection_limits(J0, effect_cols, threshold: float, k, n: int) -> list:
         Per location, each parameter's ``s_min`` (inf where the baseline absorbs it).
     """
     Q0 = orth_basis(J0)
-    need = max(threshold + k * np.log(n), 0.0)
+    # a finding is supported above max(threshold, 0) (report._finding): a threshold
+    # below zero - the null's delta-BIC seldom positive - does not lower that (a session
+    # of three clean shots, thresholds -4 to -15, said a slope of 0 mm/m and a patch
+    # of |factor - 1| 4e-6 would have been seen)
+    need = max(threshold, 0.0) + k * np.log(n)
     out = []
     for E in effect_cols:
         Et = E - Q0 @ (Q0.T @ E)
