@@ -59,3 +59,7 @@ def discover(
                    f"each effect's places, REPORT.json has the range): {limits}")
     if report.get("extension"):
         typer.echo(f"extension: {report['extension']['summary']}")
+    if report["verdict"] == "unexplained":   # (why, in the report's words)
+        why = next((f.evidence for f in report.findings if f.effect == "unexplained"), "")
+        if why:
+            typer.echo(f"why: {why}")

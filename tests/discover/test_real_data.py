@@ -273,7 +273,7 @@ def test_persistent_instrument_noise_is_named_in_the_report():
             seed, cls, rep["warnings"], rep["noise"])
 
 
-def test_a_peer_simulators_physics_is_not_called_none():
+def test_a_peer_simulators_physics_is_not_called_none(tmp_path):
     """A shot drawn by physics of another simulator's (a friction law that is not a
     power law, a curl that grows as the rock slows, another spin decay: ``_world``),
     2 mm white noise: the paper's model misses it by several times the noise, smoothly.
@@ -288,11 +288,18 @@ def test_a_peer_simulators_physics_is_not_called_none():
 
     seed = _entropy()
     shot, truth = make_peer_physics_world(np.random.default_rng(seed))
-    rep = discover(shot, seed=1, n_boot=200)
-    assert rep.verdict != "none", (seed, truth)
-    if rep.verdict == "unexplained":
-        assert rep.unexplained.get("smooth_misfit") or rep.structure_before["structured"], (
-            seed, rep.unexplained)
+    f, out = tmp_path / "peer.csv", tmp_path / "report.json"
+    write_series(f, shot)
+    res = runner.invoke(app, ["discover", str(f), "-o", str(out), "--seed", "1"])
+    assert res.exit_code == 0, (seed, res.output)
+    rep = json.loads(out.read_text())
+    assert rep["verdict"] != "none", (seed, truth)
+    if rep["verdict"] == "unexplained":
+        assert (rep["unexplained"].get("smooth_misfit")
+                or rep["structure_before"]["structured"]), (seed, rep["unexplained"])
+        # and the command line says why, in one line
+        why = [ln for ln in res.output.splitlines() if ln.startswith("why: ")]
+        assert len(why) == 1 and len(why[0]) > 20, (seed, res.output)
 
 
 def test_clean_shots_show_no_smooth_misfit():
