@@ -80,3 +80,26 @@ def test_cli_export(tmp_path):
     p = subprocess.run(run + ["export", str(tmp_path / "s.csv"), "-o", str(tmp_path / "w.csv")],
                        capture_output=True, text=True)
     assert p.returncode in (1, 2) and "--derivatives" in p.stderr
+
+
+def test_export_checks_the_units_first(tmp_path):
+    """A series in centimetres is refused (one line naming the column), not exported as
+    velocities in 'm/s' a hundred times too large; nothing is written."""
+    import pandas as pd
+    from typer.testing import CliRunner
+
+    from curltrack.cli import app
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    s = simulate_series(ShotModel(v0=rng.uniform(1.2, 2.2), omega0=rng.uniform(0.5, 2.5)),
+                        noise_m=0.002, noise_rad=0.005, seed=seed)
+    d = s.data.copy()
+    d[["x", "y"]] *= 100.0
+    src = tmp_path / "cm.csv"
+    d.to_csv(src, index=False)
+    out = tmp_path / "v.csv"
+    res = CliRunner().invoke(app, ["export", str(src), "--derivatives", "-o", str(out)])
+    assert res.exit_code == 1 and "centimetres" in res.output, (seed, res.output)
+    assert not out.exists(), seed
+    assert pd.read_csv(src)["x"].equals(d["x"]), seed   # (the input untouched)

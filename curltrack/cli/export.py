@@ -28,7 +28,8 @@ def export(
     --derivatives: velocities by local polynomial fits (Savitzky-Golay on the real
     times; no window straddles a stop or a long gap), with 1 sigma from the per-frame
     sigmas (or the data's scatter), including the frame-to-frame correlation of tracked
-    noise.  Rows with ok = 0 get empty velocities.
+    noise.  Rows with ok = 0 get empty velocities.  The series' units are checked
+    first, as by fit and discover (a unit mistake is an error naming the column).
     """
     from ..errors import ParameterError
     from ..export import derivatives as derive
@@ -38,11 +39,18 @@ def export(
         raise ParameterError("nothing to export: give --derivatives", where="export")
     check_outputs([series, sidecar_path(series)],
                   [("-o", output), ("-o (its sidecar)", sidecar_path(output))])
+    from ..sanity import check_units
+
     s = read_series(series)
+    # (velocities of a series in feet or milliseconds would be written as m/s)
+    said = check_units(s)
+    for w in said:
+        typer.echo(f"warning: {w}", err=True)
     data = derive(s, window_s=window_s, order=order)
     meta = dict(s.meta, derivatives={"method": "local polynomial (Savitzky-Golay)",
                                      "window_s": window_s, "order": order,
                                      "source": str(series)})
+    meta["warnings"] = [*meta.get("warnings", []), *said]
     side = write_series(output, data, meta)
     n = int(data["vx"].notna().sum())
     typer.echo(f"{n}/{len(data)} rows with velocities; wrote {output} and {side}")
