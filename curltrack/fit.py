@@ -46,7 +46,7 @@ from .physics import closed_form as cf
 from .fitting import solve
 from .physics.params import DESKEW, LAMBDA, bound_warnings, to_lmfit
 from .rig import Rig, default_rig
-from .sanity import check_units
+from .sanity import check_units, late_stop_warning
 from .series import Series, series_stops
 from .series.noise import row_sigma
 
@@ -511,6 +511,7 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
         vals[k] = _nominal(v)
         errs[k] = _stderr(v)
     vals["n_points"] = int(len(t))
+    warnings += late_stop_warning(vals.get("t_FS"), path)
     extra = {
         "t_FS_detected": t_tr, "t_Ftheta_detected": t_rot, "fixed_stop": bool(fixed_stop),
         "R_m": R, "r_m": r,

@@ -41,8 +41,8 @@ import numpy as np
 
 from .errors import SeriesError
 
-__all__ = ["check_units", "bound_rows", "MAX_DURATION_S", "MAX_T_S", "MAX_SPEED",
-           "MAX_SPIN", "DISCOVER_MAX_ROWS"]
+__all__ = ["check_units", "late_stop_warning", "bound_rows", "MAX_DURATION_S", "MAX_T_S",
+           "MAX_SPEED", "MAX_SPIN", "DISCOVER_MAX_ROWS"]
 
 #: Longest series taken as one shot (s): a slow draw lasts ~35 s.
 MAX_DURATION_S = 120.0
@@ -65,6 +65,20 @@ MAX_TRAVEL_M = 46.0
 MAX_MOVING_T_S = 60.0
 #: Speed (m/s) above which a rock is taken to be moving (for MAX_MOVING_T_S).
 MOVING_SPEED = 0.05
+#: Latest plausible end of a slide (s after release): the paper's slowest draws stop by
+#: ~30 s; a fit that ends later says t may not count from the release (a warning).
+MAX_SLIDE_S = 45.0
+
+
+def late_stop_warning(t_stop, name: str) -> list[str]:
+    """A warning when a fitted slide ends later than :data:`MAX_SLIDE_S` after t = 0:
+    t that counts from some other instant than the release (an instrument's start)
+    makes the fit extrapolate v0 and the origin back over the offset."""
+    if t_stop is None or not np.isfinite(t_stop) or t_stop <= MAX_SLIDE_S:
+        return []
+    return [f"{name}: the slide ends {t_stop:.1f} s after t = 0, later than a curling "
+            f"shot's (<= {MAX_SLIDE_S:g} s): if t does not count from the release, v0 and "
+            f"every value at t = 0 are extrapolated back over the offset"]
 #: Fastest plausible spin (rad/s): a spinner turns at most ~3 turns/s.
 MAX_SPIN = 25.0
 #: Most measured rows ``discover`` fits at once (all shots together).  Its memory

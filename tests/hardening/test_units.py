@@ -120,6 +120,21 @@ def test_rows_before_the_release_are_said_to_be_left_out(seed):
     assert a.values["lambda_y"] == pytest.approx(b.values["lambda_y"], rel=1e-9), seed
 
 
+def test_a_slide_that_ends_late_is_warned_of(seed):
+    """t counted from some instant 25-55 s before the release (not caught as an offset:
+    the rock moves before 60 s) fits a slide that ends after 45 s: a warning says v0
+    and t = 0 are extrapolated; the same shot from its release says nothing of it."""
+    from curltrack.fit import fit_series
+
+    rng = np.random.default_rng(seed)
+    s = _shot(seed, v0=rng.uniform(1.6, 2.2))
+    d = s.data.copy()
+    d["t"] += float(rng.uniform(25.0, 55.0))
+    late = fit_series(Series(d, {}))
+    assert any("slide ends" in w for w in late.warnings), (seed, late.warnings)
+    assert not any("slide ends" in w for w in fit_series(s).warnings), seed
+
+
 def test_right_units_never_flagged(seed):
     """A random sweep of 40 simulated shots (draws, fast take-outs, spinners, 30/60 fps):
     nothing is said, but that a take-out simulated past the back boards (46 m) runs
