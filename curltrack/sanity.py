@@ -68,17 +68,6 @@ MOVING_SPEED = 0.05
 #: Latest plausible end of a slide (s after release): the paper's slowest draws stop by
 #: ~30 s; a fit that ends later says t may not count from the release (a warning).
 MAX_SLIDE_S = 45.0
-
-
-def late_stop_warning(t_stop, name: str) -> list[str]:
-    """A warning when a fitted slide ends later than :data:`MAX_SLIDE_S` after t = 0:
-    t that counts from some other instant than the release (an instrument's start)
-    makes the fit extrapolate v0 and the origin back over the offset."""
-    if t_stop is None or not np.isfinite(t_stop) or t_stop <= MAX_SLIDE_S:
-        return []
-    return [f"{name}: the slide ends {t_stop:.1f} s after t = 0, later than a curling "
-            f"shot's (<= {MAX_SLIDE_S:g} s): if t does not count from the release, v0 and "
-            f"every value at t = 0 are extrapolated back over the offset"]
 #: Fastest plausible spin (rad/s): a spinner turns at most ~3 turns/s.
 MAX_SPIN = 25.0
 #: Most measured rows ``discover`` fits at once (all shots together).  Its memory
@@ -100,6 +89,17 @@ DIRECTION_SHARE = 0.15
 CURL_MIN_M = 0.1
 CURL_MIN_SHARE = 0.02
 CURL_MIN_TURN_RAD = 1.5
+
+
+def late_stop_warning(t_stop, name: str) -> list[str]:
+    """A warning when a fitted slide ends later than :data:`MAX_SLIDE_S` after t = 0:
+    t that counts from some other instant than the release (an instrument's start)
+    makes the fit extrapolate v0 and the origin back over the offset."""
+    if t_stop is None or not np.isfinite(t_stop) or t_stop <= MAX_SLIDE_S:
+        return []
+    return [f"{name}: the slide ends {t_stop:.1f} s after t = 0, later than a curling "
+            f"shot's (<= {MAX_SLIDE_S:g} s): if t does not count from the release, v0 and "
+            f"every value at t = 0 are extrapolated back over the offset"]
 
 
 def check_units(series) -> list[str]:

@@ -33,14 +33,13 @@ def export(
     """
     from ..errors import ParameterError
     from ..export import derivatives as derive
+    from ..sanity import check_units
     from ..series import read_series, sidecar_path, write_series
 
     if not derivatives:
         raise ParameterError("nothing to export: give --derivatives", where="export")
     check_outputs([series, sidecar_path(series)],
                   [("-o", output), ("-o (its sidecar)", sidecar_path(output))])
-    from ..sanity import check_units
-
     s = read_series(series)
     # (velocities of a series in feet or milliseconds would be written as m/s)
     said = check_units(s)

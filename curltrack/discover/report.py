@@ -177,7 +177,8 @@ def _jump_left(sc, base, base_jump) -> str | None:
     held = (f"held {jump['t_to_s'] - jump['t_from_s']:.1f} s" if jump["t_to_s"] is not None
             else "to the end")
     return (f"{JUMP_LEFT} (shot {jump['shot']}, {jump['coord']} between t = "
-            f"{jump['t_before_s']:.2f} and {jump['t_from_s']:.2f} s, {held}: chi-square {jump['gain']:.1f} over the "
+            f"{jump['t_before_s']:.2f} and {jump['t_from_s']:.2f} s, {held}: chi-square "
+            f"{jump['gain']:.1f} over the "
             f"{jump['threshold']:.1f} a jump reaches by chance); a rock's position cannot "
             f"jump, an instrument's can")
 

@@ -394,8 +394,9 @@ def _jump_starts(m: int) -> np.ndarray:
     return np.unique(np.linspace(1, m - 1, min(STEP_STARTS, m - 1)).astype(int))
 
 
-def _jump_shapes(t: np.ndarray) -> list[tuple[int, int]]:
-    """(first row, row after the last) of every jump scanned on rows at times ``t``.
+def _is_jump(t: np.ndarray, a: int, b: int) -> bool:
+    """Whether rows ``a`` to ``b - 1`` (``b`` = ``t.size``: to the end) of rows at times
+    ``t`` can be an instrument's jump.
 
     A jump holds at least the shortest hold and :data:`STEP_MIN_ROWS` rows, and starts
     at least the shortest hold after the first row: a shorter box - one row at either
@@ -404,14 +405,21 @@ def _jump_shapes(t: np.ndarray) -> list[tuple[int, int]]:
     heavy-tailed shots showed a "jump" on their last row at chi-square 168 over 56).
     """
     m, hold = t.size, STEP_HOLD_S[0]
+    if t[a] - t[0] < hold or b - a < STEP_MIN_ROWS or b > m:
+        return False
+    return bool(t[-1] - t[a] >= hold if b == m else t[b] >= t[a] + hold)
+
+
+def _jump_shapes(t: np.ndarray) -> list[tuple[int, int]]:
+    """(first row, row after the last) of every jump scanned on rows at times ``t``:
+    from each of :func:`_jump_starts` to the end, or held for each of
+    :data:`STEP_HOLD_S` (:func:`_is_jump`)."""
+    m = t.size
     shapes = []
     for a in _jump_starts(m):
-        if t[a] - t[0] < hold:
-            continue
-        if t[-1] - t[a] >= hold and m - a >= STEP_MIN_ROWS:
-            shapes.append((a, m))
-        ends = np.searchsorted(t, t[a] + np.array(STEP_HOLD_S))
-        shapes += [(a, int(b)) for b in np.unique(ends) if a + STEP_MIN_ROWS <= b < m]
+        holds = [int(b) for b in np.unique(np.searchsorted(t, t[a] + np.array(STEP_HOLD_S)))
+                 if b < m]
+        shapes += [(int(a), b) for b in (m, *holds) if _is_jump(t, a, b)]
     return shapes
 
 
@@ -438,18 +446,10 @@ def _refined_jump(base, i, Q0s, r_perp, t, a, b) -> tuple[int, int]:
     grid = _jump_starts(m)
     k = int(np.searchsorted(grid, a))
     lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
-    shapes = []
-    for a2 in range(int(lo), int(hi) + 1):
-        if t[a2] - t[0] < hold or m - a2 < STEP_MIN_ROWS:
-            continue
-        if b == m:
-            if t[-1] - t[a2] >= hold:
-                shapes.append((a2, m))
-            continue
-        for b2 in range(int(np.searchsorted(t, t[b] - hold)),
-                        int(np.searchsorted(t, t[b] + hold, side="right"))):
-            if a2 + STEP_MIN_ROWS <= b2 < m and t[b2] - t[a2] >= hold:
-                shapes.append((a2, b2))
+    ends = ([m] if b == m else range(int(np.searchsorted(t, t[b] - hold)),
+                                     int(np.searchsorted(t, t[b] + hold, side="right"))))
+    shapes = [(a2, int(b2)) for a2 in range(int(lo), int(hi) + 1) for b2 in ends
+              if _is_jump(t, a2, int(b2))]
     gains = []
     for k in range(0, len(shapes), 256):   # (bounded memory)
         E, norm2 = _jump_columns(base, i, Q0s, shapes[k:k + 256], m)

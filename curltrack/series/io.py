@@ -179,7 +179,6 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
     """
     data, renamed = _contract_names(data, name)
     data, filled = _fill_optional(data, name)
-    filled = renamed + filled
     missing = [c for c in COLUMNS if c not in data.columns]
     if missing:
         sep = next((c for c in ";\t|" if len(data.columns) == 1
@@ -204,7 +203,7 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
                 raise SeriesError(f"non-numeric value {out[col].iloc[row]!r} in column "
                                   f"'{col}'{hint}", path=name, where=f"row {row + 2}")
             out[col] = num.astype(float)
-    warnings: list[str] = list(filled)
+    warnings: list[str] = [*renamed, *filled]
     if len(out) == 0:
         raise SeriesError("no rows", path=name)
     for col in ("frame", "t", "ok"):

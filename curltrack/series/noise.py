@@ -147,16 +147,18 @@ def resolution(q) -> float:
     Measured values repeat exactly only when they are rounded (to a centimetre, to a
     degree, to the digits a file keeps): where more than :data:`REPEAT_SHARE` of the
     rows repeat the previous row's value, the step is the largest of which every change
-    between rows is a whole multiple (0 when there is none: repeats, but not rounding).  Rounding to it is an error of at least step / sqrt(12) per row, which
-    second differences of rows that repeat a value do not show (a clean shot rounded to
-    a centimetre: x's noise estimated at 1e-5 m, y's at 7 mm, and the baseline fitted x
+    between rows is a whole multiple (0 when there is none: repeats, but not rounding).
+    Rounding to it is an error of at least step / sqrt(12) per row, which second
+    differences of rows that repeat a value do not show (a clean shot rounded to a
+    centimetre: x's noise estimated at 1e-5 m, y's at 7 mm, and the baseline fitted x
     alone, y 36 mm off).
     """
     q = np.asarray(q, dtype=float)
-    d = np.abs(np.diff(q[np.isfinite(q)]))
+    q = q[np.isfinite(q)]
+    d = np.abs(np.diff(q))
     if d.size < 10:
         return 0.0
-    same = d <= 1e-12 * max(float(np.max(np.abs(q[np.isfinite(q)]))), 1e-300)
+    same = d <= 1e-12 * max(float(np.max(np.abs(q))), 1e-300)
     if same.mean() <= REPEAT_SHARE or same.all():
         return 0.0
     # every change is a whole number of steps; the smallest change seen may be several

@@ -354,6 +354,7 @@ def series_stops(series) -> tuple[float | None, float | None, list[str]]:
     found = detect_stops(series.data, meta.get("fps"))
     t_tr = meta.get(keys[0], found.t_stop_translation)
     t_rot = meta.get(keys[1], found.t_stop_rotation)
+
     def said(t):
         return "none" if t is None else f"{t:.3f} s"
 

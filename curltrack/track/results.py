@@ -105,8 +105,8 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     (:data:`SIGMA_SLOW_RATIO` x the shot's median random variance), the origin (the
     white part of its fit's value at t = 0, from the calibrated rows; ``origin_sigma``
     when given: a late first frame's extrapolation), ``sys_xy`` (parallax, the fields'
-    offset, the lattice's local misfit at the rock: what its correction leaves).  ``sigma_theta``: the
-    random part, ``theta0_sigma`` with the slow error it cannot see
+    offset, the lattice's local misfit at the rock: what its correction leaves).
+    ``sigma_theta``: the random part, ``theta0_sigma`` with the slow error it cannot see
     (:data:`THETA0_SLOW_RATIO` x the median random variance) and ``sys_theta``.  Scales are NaN (the caller keeps
     its own sigmas) with fewer than :data:`MIN_SIGMA_DOF` degrees of freedom.
     ``off_path`` ((N,) bool): rows the path through the others misses by more than
