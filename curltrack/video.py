@@ -90,10 +90,12 @@ class VideoInfo:
         "" when the scan is the stream's flags; else why a stream flagged progressive is
         measured as interlaced (:func:`field_motion`).
     colour_per_field : bool
-        Each field has its own colour rows: a flagged interlaced stream (as cameras
-        write it); for interlacing found in the content, what
-        :attr:`FieldMotion.colour_per_field` shows.  Each field is then measured from
-        its own colour, else from colour the two share.
+        Each field has its own colour rows, as :attr:`FieldMotion.colour_per_field`
+        shows (True when the content shows nothing: a still camera).  Each field is
+        then measured from its own colour, else from colour the two share.
+    content_note : str
+        "" when a stream flagged interlaced is measured as flagged; else what its
+        content showed and what was done (order reversed, one exposure, shared colour).
     streams : str
         "" for a file with one video stream; else which of its video streams is measured
         (:func:`main_stream`: the largest picture).
@@ -122,15 +124,17 @@ class VideoInfo:
     pixel_aspect: float = 1.0
     fields_from_content: str = ""
     colour_per_field: bool = True
+    content_note: str = ""
     streams: str = ""
     time_tick_s: float = 0.0
     times_on_grid: bool = False
 
     @property
     def content_field_order(self) -> str | None:
-        """"tff"/"bff" when the interlacing was found in the content (the frames' flags
-        say progressive, so :func:`iter_frames` must be told the order), else None."""
-        if not self.fields_from_content:
+        """"tff"/"bff" when the field order was found in the content (the frames' flags
+        say progressive, or another order, so :func:`iter_frames` must be told it), else
+        None."""
+        if not (self.fields_from_content or self.content_note):
             return None
         return "tff" if self.top_field_first else "bff"
 
@@ -149,6 +153,8 @@ class VideoInfo:
                 if self.interlaced else "progressive")
         if self.fields_from_content:
             scan += f" (flagged progressive: {self.fields_from_content})"
+        if self.content_note:
+            scan += f" ({self.content_note})"
         rot = f", rotation tag {self.rotation_deg} deg" if self.rotation_deg else ""
         if abs(self.pixel_aspect - 1.0) > 1e-3:
             rot += (f", non-square pixels ({self.pixel_aspect:.4g}: resampled to square "
@@ -435,6 +441,14 @@ class FieldMotion:
                 and abs(self.slope) >= 5.0 * self.slope_err)
 
     @property
+    def one_exposure(self) -> bool:
+        """The fields were shown to coincide as the image moved: a progressive picture
+        (slope under :data:`FIELD_SLOPE`, and a woven one's 0.5 over 5 standard errors
+        away)."""
+        return (self.n_moving >= FIELD_MIN_MOVING and abs(self.slope) < FIELD_SLOPE
+                and 0.5 - abs(self.slope) >= 5.0 * self.slope_err)
+
+    @property
     def order(self) -> str | None:
         """"tff" or "bff" when :attr:`woven`, else None."""
         return ("tff" if self.slope > 0 else "bff") if self.woven else None
@@ -694,6 +708,41 @@ def _offset_frame_count(path: str, size: int, mtime_ns: int, first: float, fps: 
     return n_av if n_av < n and abs(n_av + first * fps - n) <= 1.5 else None
 
 
+def _scan_from_content(av_info: dict, fm: "FieldMotion | None") -> tuple[dict, str, str]:
+    """The scan to measure by, from the stream's flags and what its fields show.
+
+    Returns ``(av_info, fields_from_content, content_note)``: ``av_info`` with
+    ``interlaced``, ``top_field_first`` and ``colour_per_field`` as measured where the
+    content shows them; ``fields_from_content`` the evidence when a stream flagged
+    progressive is woven; ``content_note`` what was changed on a stream flagged
+    interlaced (its field order reversed, its fields one exposure, its colour shared),
+    "" when the content agrees with the flags or shows nothing (a still camera).
+    """
+    if fm is None:
+        return av_info, "", ""
+    if not av_info["interlaced"]:
+        if not fm.woven:
+            return av_info, "", ""
+        return ({**av_info, "interlaced": True, "top_field_first": fm.order == "tff",
+                 "colour_per_field": fm.colour_per_field}, fm.describe(), "")
+    flagged = "tff" if av_info["top_field_first"] else "bff"
+    if fm.one_exposure:
+        # two fields of one exposure timed half a frame apart would put every other
+        # row's time off by a field period (PsF, a progressive source flagged so)
+        return ({**av_info, "interlaced": False},
+                "", f"flagged interlaced ({flagged}), but {fm.describe()}: measured as "
+                    "whole frames, one exposure each")
+    if not fm.woven:
+        return av_info, "", ""
+    notes = []
+    if fm.order != flagged:
+        notes.append(f"flagged {flagged}, but {fm.describe()}: measured {fm.order}")
+    elif not fm.colour_per_field:
+        notes.append(f"flagged interlaced: {fm.describe()}")
+    return ({**av_info, "top_field_first": fm.order == "tff",
+             "colour_per_field": fm.colour_per_field}, "", "; ".join(notes))
+
+
 @functools.lru_cache(maxsize=32)
 def _field_motion_of_file(path: str, size: int, mtime_ns: int) -> FieldMotion | None:
     """:func:`field_motion` once per file version (probe_video is called per stage)."""
@@ -768,16 +817,16 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
             w, h, fps = av_info["size"][0], av_info["size"][1], av_info["fps"] or fps
         black = int(img.max()) < 8 and av_info.get("peak", 0) >= 8
         square = abs(av_info.get("pixel_aspect", 1.0) - 1.0) <= 1e-3
-        from_content = ""
-        if av_info and not av_info["interlaced"] and fps <= 31.0:
+        from_content = content_note = ""
+        flagged_interlaced = bool(av_info and av_info["interlaced"])
+        if av_info and fps <= 31.0:
+            # what the fields show, flagged or not: flags are lost or set wrongly by
+            # re-encodings, and how the colour was subsampled is in no flag at all
             fm = _field_motion_of_file(str(path), *_file_stamp(path))
-            if fm is not None and fm.woven:
-                av_info = {**av_info, "interlaced": True,
-                           "top_field_first": fm.order == "tff",
-                           "colour_per_field": fm.colour_per_field}
-                from_content = fm.describe()
-        decoder = ("pyav" if av_info and (av_info["interlaced"] or black or not square
-                                          or counted)
+            av_info, from_content, content_note = _scan_from_content(av_info, fm)
+        # (OpenCV 5 decodes H.264 flagged interlaced as black frames)
+        decoder = ("pyav" if av_info and (flagged_interlaced or av_info["interlaced"]
+                                          or black or not square or counted)
                    else "opencv")
         first = av_info.get("first_time", 0.0)
         if first * fps >= 1.0:
@@ -814,7 +863,8 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
                                      "colour_per_field")
              if k in av_info}
     return VideoInfo(str(path), n, fps, w, h, codec, n / fps, decoder=decoder,
-                     fields_from_content=from_content, streams=streams,
+                     fields_from_content=from_content, content_note=content_note,
+                     streams=streams,
                      time_tick_s=tick, times_on_grid=phase is not None, **extra)
 
 

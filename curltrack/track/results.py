@@ -678,6 +678,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                         f"{info.fields_from_content}: interlaced video whose flags were lost (a re-encoding): each "
                         f"frame was measured as its two fields, "
                         f"{'top' if info.top_field_first else 'bottom'} first")
+    if getattr(info, "content_note", ""):
+        warnings.append(f"{path}: the stream is {info.content_note}")
     if abs(getattr(info, "pixel_aspect", 1.0) - 1.0) > 1e-3:
         warnings.append(f"{path}: the video's pixels are not square (aspect "
                         f"{info.pixel_aspect:.4g}): frames were resampled to square pixels "

@@ -21,7 +21,7 @@ NTSC = 30000 / 1001
 
 
 def weave_interlaced(src, dst, top_first=True, crf=18, flagged=True, shared_colour=False,
-                     rate=None):
+                     rate=None, flag_order=None, one_exposure=False):
     """Weave pairs of progressive frames of ``src`` into interlaced H.264 frames.
 
     ``flagged=False`` writes the same woven frames as progressive H.264 with no field
@@ -30,7 +30,9 @@ def weave_interlaced(src, dst, top_first=True, crf=18, flagged=True, shared_colo
     colour across the woven frame instead, as a re-encoding that converted the pixel
     format as if progressive does: FFmpeg's conversion, each colour row the mean of a
     line of each field; ``"top"``: OpenCV's, each colour row sampled from the top
-    field's line alone.
+    field's line alone.  ``flag_order`` ("tff"/"bff") flags an order other than the
+    woven one (a wrong flag); ``one_exposure=True`` weaves both fields of a frame from
+    one source frame (a progressive picture flagged interlaced, as PsF).
 
     Each field line sums two adjacent rows of its exposure (rows 2i + p and 2i + p + 1
     for the field of parity p), as a CCD camcorder in field-integration mode reads its
@@ -48,7 +50,7 @@ def weave_interlaced(src, dst, top_first=True, crf=18, flagged=True, shared_colo
     st = None
     frames = iter_frames(src, decoder="opencv")
     for a in frames:
-        b = next(frames, None)
+        b = a if one_exposure else next(frames, None)
         if b is None:
             break
         h, w = a.image.shape[:2]
@@ -80,7 +82,9 @@ def weave_interlaced(src, dst, top_first=True, crf=18, flagged=True, shared_colo
             # clips from one seed; on one thread the clip is the seed's alone)
             st.codec_context.thread_count = 1
             st.options = ({"flags": "+ilme+ildct", "crf": str(crf),
-                           "x264-params": "tff=1" if top_first else "bff=1"} if flagged
+                           "x264-params": ("tff=1" if (flag_order or ("tff" if top_first
+                                                                    else "bff")) == "tff"
+                                           else "bff=1")} if flagged
                           else {"crf": str(crf)})
         for p in st.encode(av.VideoFrame.from_ndarray(img, format="yuv420p")):
             out.mux(p)
@@ -243,13 +247,16 @@ def test_dv_pixels_10_11_tracked_in_square_pixels(tmp_path):
     assert any("resampled to square pixels" in w for w in s.meta["warnings"]), seed
 
 
-def test_interlaced_footage_whose_flags_were_lost_is_measured_per_field(tmp_path):
-    """The same woven fields written as progressive H.264 (a re-encoding that dropped
-    the interlace flags): found from the content, measured per field in the order the
-    content shows, warned about, and honest.  Its colour is drawn as a re-encoding
-    leaves it: each field's own 4:2:0 rows (planes copied) or subsampled across the
-    woven frame by a pixel-format conversion (FFmpeg's: both fields' mean; OpenCV's: the
-    top field's); own or shared must be read from the content.
+def test_interlaced_footage_is_measured_as_its_fields_show_whatever_its_flags(tmp_path):
+    """The same woven fields written as a re-encoding leaves them: flagged progressive
+    (the interlace flags dropped), flagged interlaced in the right order, or in the
+    wrong one: measured per field in the order the content shows, warned about where
+    the flags say otherwise, and honest.  Its colour is drawn as a re-encoding leaves
+    it: each field's own 4:2:0 rows (planes copied) or subsampled across the woven frame
+    by a pixel-format conversion (FFmpeg's: both fields' mean; OpenCV's: the top
+    field's); own or shared must be read from the content, flags or none (flagged
+    interlaced with shared colour, the flags were trusted for the colour too: a rendered
+    camcorder at 1.4 Mbit/s had every row 4-8 mm off under a 1 mm sigma).
 
     Measured (2026-11-26, 8 draws each): own colour 0.9-1.2 mm RMS, max <= 2.9 mm, as
     the flagged file; FFmpeg's shared colour 0.5-2.8 mm once the fields' mutual pull is
@@ -264,16 +271,20 @@ def test_interlaced_footage_whose_flags_were_lost_is_measured_per_field(tmp_path
     rig = default_rig()
     top_first = bool(rng.random() < 0.5)
     colour = str(rng.choice(["own", "ffmpeg", "opencv"]))
+    flags = str(rng.choice(["none", "right", "reversed"]))
     shared = colour != "own"
-    truth, video, motion = woven_draw(tmp_path, rng, "reencoded.mp4", top_first=top_first,
-                                      flagged=False,
-                                      shared_colour={"own": False, "ffmpeg": True,
-                                                     "opencv": "top"}[colour])
+    order = "tff" if top_first else "bff"
+    truth, video, motion = woven_draw(
+        tmp_path, rng, "reencoded.mp4", top_first=top_first, flagged=flags != "none",
+        flag_order={"tff": "bff", "bff": "tff"}[order] if flags == "reversed" else None,
+        shared_colour={"own": False, "ffmpeg": True, "opencv": "top"}[colour])
     info = probe_video(video)
-    what = (f"seed {seed}, {motion}, top first {top_first}, {colour} colour: "
-            f"{info.describe()}")
-    assert info.interlaced and info.fields_from_content, what
-    assert info.top_field_first == top_first, what
+    what = (f"seed {seed}, {motion}, top first {top_first}, {colour} colour, flags "
+            f"{flags}: {info.describe()}")
+    assert info.interlaced and info.top_field_first == top_first, what
+    assert bool(info.fields_from_content) is (flags == "none"), what
+    if flags == "reversed":
+        assert f"measured {order}" in info.content_note, what
     # shared colour is never read as the fields' own; own colour is (detected in every
     # draw tried), though the safe reading - shared, sigma wide - is allowed where the
     # content does not show it (test_video: steep pans)
@@ -282,7 +293,9 @@ def test_interlaced_footage_whose_flags_were_lost_is_measured_per_field(tmp_path
     series = track_video(video, rig)
     d = series.data
     assert series.meta.get("fields") is True and len(d) == 2 * info.n_frames, what
-    assert any("flagged progressive" in w for w in series.warnings), what
+    warned = {"none": "flagged progressive", "right": None,
+              "reversed": f"measured {order}"}[flags]
+    assert warned is None or any(warned in w for w in series.warnings), what
     assert any("colour mixes both exposures" in w for w in series.warnings) is read_shared, \
         what
     tr = truth.data.iloc[2 * d.frame.to_numpy() + d.field.to_numpy()]
@@ -298,6 +311,45 @@ def test_interlaced_footage_whose_flags_were_lost_is_measured_per_field(tmp_path
     # off than that - CI seed 1965954739: 2.0 mm under a 4.7 mm sigma, 0.30-0.33)
     assert (0.2 if colour == "opencv" else 0.4 if not read_shared else 0.02) < zr < 1.6, \
         f"{what}: error/sigma RMS {zr:.2f}"
+
+
+def test_a_progressive_picture_flagged_interlaced_is_measured_as_whole_frames(tmp_path):
+    """Progressive frames written with interlace flags (PsF, or a re-encoding that set
+    them): its two fields are one exposure.  Measured as two fields timed half a frame
+    apart, every other row's time would be a field period off (34 mm at 2 m/s); the
+    content shows it (the fields do not move apart as the image moves), so each frame is
+    measured whole, at its own time, and the note says why."""
+    from curltrack.render import CameraConfig, RenderConfig, render_video
+    from curltrack.track import track_video
+    from curltrack.video import probe_video
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    sim = simulate_series(ShotModel(v0=rng.uniform(0.8, 2.0), omega0=rng.uniform(0.5, 2.5)),
+                          fps=NTSC)
+    sim = replace(sim, data=sim.data.iloc[:60].reset_index(drop=True))
+    motion = str(rng.choice(["ladder", "handheld"]))
+    prog = tmp_path / "frames.mp4"
+    truth = render_video(sim, default_rig(), prog, config=RenderConfig(
+        width=720, height=480, fps=NTSC, camera=CameraConfig(motion=motion)),
+        seed=int(rng.integers(1 << 30)))
+    video = tmp_path / "psf.mp4"
+    top_first = bool(rng.random() < 0.5)
+    weave_interlaced(prog, video, top_first=top_first, one_exposure=True)
+    info = probe_video(video)
+    what = f"seed {seed}, {motion}, top first {top_first}: {info.describe()}"
+    assert not info.interlaced and "one exposure" in info.content_note, what
+    assert info.decoder == "pyav", what
+    series = track_video(video, default_rig())
+    d = series.data
+    assert "field" not in d.columns and len(d) == info.n_frames, what
+    assert any("one exposure" in w for w in series.warnings), what
+    tr = truth.data.iloc[d.frame.to_numpy()]
+    np.testing.assert_allclose(d.t.to_numpy(), tr.t.to_numpy(), atol=2e-4)
+    ok = d.ok.to_numpy() == 1
+    err = np.hypot(d.x.to_numpy() - tr.x.to_numpy(), d.y.to_numpy() - tr.y.to_numpy())[ok]
+    assert ok.mean() >= 0.95 and err.max() < 4e-3, \
+        f"{what}: ok {ok.mean():.2f}, max {1e3 * err.max():.1f} mm"
 
 
 def test_doctor_judges_interlaced_frames_by_their_fields(tmp_path):
