@@ -12,7 +12,8 @@ from ..rig import Rig
 from ..series import Series, make_meta
 from .outline import scale_check, scale_check_resolution
 from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, correct_parallax,
-                       estimate_height, focal_for_height, layout_scale_mismatch)
+                       LAYOUT_SPAN_BIAS_PX, estimate_height, focal_for_height,
+                       layout_scale_mismatch)
 from .scatter import CLIP as PATH_CLIP
 from .shotframe import WINDOW_S, to_shot_frame, window_rows
 from ..series.stops import detect_stops
@@ -361,7 +362,16 @@ def _height(records, ok, rig: Rig, depth_eff: float, warnings: list) -> HeightEs
         return HeightEstimate(H, 0.0, (H - h_eff) / H, 0.0, 0, from_rig=True)
     scales = np.array([records[i].scale for i in np.flatnonzero(ok)])
     sig = np.array([records[i].sigma_m for i in np.flatnonzero(ok)])
-    est = estimate_height(scales, h_eff, weights=1.0 / np.maximum(sig, 1e-6) ** 2)
+    # the layout's span in px (its markers' RMS distance from their centre, twice, at
+    # the apparent scale): the frames' shared bias of LAYOUT_SPAN_BIAS_PX over it
+    L = np.array([[m.x_m, m.y_m] for m in rig.markers])
+    span_m = 2.0 * float(np.sqrt(np.mean(np.sum((L - L.mean(0)) ** 2, axis=1))))
+    px_per_m = float(np.nanmedian([records[i].spacing_px for i in np.flatnonzero(ok)])
+                     / (0.5 * (rig.spacing_x_m + rig.spacing_y_m))) if ok.any() else np.nan
+    span_px = span_m * float(np.nanmedian(scales)) * px_per_m if scales.size else np.nan
+    floor = LAYOUT_SPAN_BIAS_PX / span_px if np.isfinite(span_px) and span_px > 0 else 0.0
+    est = estimate_height(scales, h_eff, weights=1.0 / np.maximum(sig, 1e-6) ** 2,
+                          floor_rel=floor)
     if est is None:
         warnings.append("camera height could not be estimated from the marker layout "
                         "(set [camera].height_m in the rig); no parallax correction applied")

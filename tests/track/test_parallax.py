@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from curltrack.calib.artificial import PinholeCamera
-from curltrack.track.parallax import (camera_centre, correct_parallax, estimate_height,
-                                      focal_for_height, similarity_fit)
+from curltrack.track.parallax import (LAYOUT_SPAN_BIAS_PX, camera_centre, correct_parallax,
+                                      estimate_height, focal_for_height, similarity_fit)
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -48,6 +48,30 @@ def test_height_estimate_and_its_error_bar():
         z.append((est.height_m - H) / est.height_err_m)
     assert 0.5 < np.std(z) < 1.6  # the error bar means what it says
     assert estimate_height(np.ones(10), h) is None
+
+
+def test_a_bias_every_frame_shares_bounds_the_height_error_bar():
+    """Frames whose layout scale shares one bias (the markers' centroids on a few px)
+    do not measure the height better with their number: with ``floor_rel`` the error
+    bar covers the shared bias (error/sigma std within 0.5-1.6 over random heights,
+    biases and frame counts), without it the bar shrinks as 1/sqrt(n) and does not."""
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    h = 0.114
+    z_with, z_without = [], []
+    for _ in range(40):
+        H = rng.uniform(1.4, 3.2)
+        span_px = rng.uniform(25, 80)
+        floor = LAYOUT_SPAN_BIAS_PX / span_px
+        s_true = H / (H - h)
+        bias = rng.normal(0, floor)                  # shared by every frame
+        n = int(rng.integers(40, 300))
+        scales = s_true * (1 + bias + rng.normal(0, 0.004, n))
+        for floor_rel, z in ((floor, z_with), (0.0, z_without)):
+            est = estimate_height(scales, h, floor_rel=floor_rel)
+            z.append((est.height_m - H) / est.height_err_m)
+    assert 0.5 < np.std(z_with) < 1.6, f"seed {seed}: {np.std(z_with):.2f}"
+    assert np.std(z_without) > 2.0, f"seed {seed}: {np.std(z_without):.2f}"
 
 
 @pytest.mark.parametrize("seed", range(4))
