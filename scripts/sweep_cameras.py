@@ -14,6 +14,8 @@ rendered with its truth and rig beside it in DIR, then tracked with
 - ``z_xy`` / ``z_theta``: standard deviation of error / reported sigma (x and y errors
   over ``sigma_xy``; theta over ``sigma_theta``) - 1 when the sigmas are honest;
 - ``stop_err``: tracked minus true translation stop frame;
+- ``z_height``: the camera height's error over its reported sigma, when it was
+  measured from the marker layout (within +-2 when honest);
 - ``wrong``: ``ok`` rows off by both more than 10 mm and more than 5 sigma (the
   issue's wrong row: 0 is the aim).
 
@@ -62,6 +64,11 @@ def score(series, truth) -> dict:
     a, b = series.meta.get("stop_frame_translation"), truth.meta.get("stop_frame_translation")
     if a is not None and b is not None:
         out["stop_err"] = int(a) - int(b)
+    H, H_err = series.meta.get("camera_height_m"), series.meta.get("camera_height_err_m")
+    if (series.meta.get("camera_height_source") == "markers" and H is not None and H_err
+            and "camera_height_m" in t.columns):
+        # (the lens above the ice, as the truth gives it: the sweep's rigs have no depth)
+        out["z_height"] = (float(H) - float(np.median(t["camera_height_m"]))) / float(H_err)
     return out
 
 
@@ -110,7 +117,8 @@ COLS = [("i", "#", "{}"), ("kind", "kind", "{}"), ("size", "size", "{}"),
         ("measured", "measured", "{:.0%}"), ("pos_rms_mm", "pos RMS mm", "{:.2f}"),
         ("theta_rms_deg", "θ RMS °", "{:.3f}"), ("max_mm", "max ok err mm", "{:.1f}"),
         ("wrong", "wrong rows", "{}"), ("z_xy", "std e/σ xy", "{:.2f}"), ("z_theta", "std e/σ θ", "{:.2f}"),
-        ("stop_err", "stop Δframe", "{:+d}"), ("error", "error", "{}")]
+        ("z_height", "height e/σ", "{:+.1f}"), ("stop_err", "stop Δframe", "{:+d}"),
+        ("error", "error", "{}")]
 
 
 def table(rows) -> str:
