@@ -15,7 +15,7 @@ from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, corr
                        LAYOUT_SPAN_BIAS_PX, estimate_height, focal_for_height,
                        layout_scale_mismatch)
 from .scatter import CLIP as PATH_CLIP
-from .shotframe import WINDOW_S, to_shot_frame, window_rows
+from .shotframe import WINDOW_S, initial_state, to_shot_frame, window_rows
 from ..series.stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
@@ -379,6 +379,46 @@ def _height(records, ok, rig: Rig, depth_eff: float, warnings: list) -> HeightEs
     return est
 
 
+def _nadir_and_k(Hs, height_m: float, k0: float, h_eff: float, pp):
+    """(focal px, nadir (n, 2) m, parallax factor (n,)) of the frames' homographies
+    ``Hs`` for a camera ``height_m`` above the ice: NaN focal and nadirs, and ``k0`` for
+    every frame, when the height is not known."""
+    nadir = np.full((len(Hs), 2), np.nan)
+    k = np.full(len(Hs), k0)
+    if not np.isfinite(height_m) or len(Hs) == 0:
+        return np.nan, nadir, k
+    # (the focal is one number: its median over <= 60 frames spread over the shot)
+    fs = focal_for_height(Hs[::max(1, len(Hs) // 60)], height_m, pp)
+    f_px = float(np.nanmedian(fs)) if np.isfinite(fs).any() else np.nan
+    if np.isfinite(f_px):
+        lens = camera_centre(Hs, f_px, pp)
+        nadir = lens[:, :2]
+        # each frame's own height (a handheld camera bobs by centimetres: 1 cm at 1.5 m
+        # is 0.05 % of k, 0.5 mm at a rock 1 m from the nadir); the homography's scale
+        # measures it, the video's estimate fixes the focal
+        k = np.where(np.isfinite(lens[:, 2]) & (lens[:, 2] > 2 * h_eff),
+                     1.0 - h_eff / np.where(lens[:, 2] > 0, lens[:, 2], 1.0), k0)
+    return f_px, nadir, k
+
+
+def _parallax_sigma(Hs, est: HeightEstimate, h_eff: float, pp, app, centre, t) -> np.ndarray:
+    """Each measured row's 1 sigma (m) from the video-wide camera height's: the rows
+    corrected again for a height one sigma higher (the focal, each frame's nadir and its
+    parallax factor all follow it), less the shift of the origin (its fit to the first
+    rows, :func:`~.shotframe.initial_state`: x, y are displacements from it)."""
+    if not (np.isfinite(est.height_m) and np.isfinite(est.height_err_m)) or len(Hs) == 0:
+        return np.zeros(len(Hs))
+    H2 = est.height_m + est.height_err_m
+    _, nadir2, k2 = _nadir_and_k(Hs, H2, (H2 - h_eff) / H2, h_eff, pp)
+    nd2 = np.where(np.isfinite(nadir2).all(axis=1, keepdims=True), nadir2, app)
+    shift = correct_parallax(app, nd2, k2[:, None]) - centre
+    good = np.isfinite(shift).all(axis=1)
+    if good.sum() < 3:
+        return np.zeros(len(Hs))
+    shift = shift - initial_state(t[good], shift[good])[0]
+    return np.nan_to_num(np.hypot(*shift.T))
+
+
 def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
     """Put every grid segment in one cell index (:mod:`.segments`), in place.
 
@@ -487,22 +527,9 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     calib = loop_info["calib"]
     pp = calib.K[:2, 2]
     idx = np.flatnonzero(ok)
-    f_px = np.nan
     nadir = np.full((n, 2), np.nan)
-    k = np.full(len(idx), est.k)
-    if np.isfinite(est.height_m):
-        # (the focal is one number: its median over <= 60 frames spread over the shot)
-        fs = focal_for_height(np.array([records[i].H for i in idx[::max(1, len(idx) // 60)]]),
-                              est.height_m, pp)
-        f_px = float(np.nanmedian(fs)) if np.isfinite(fs).any() else np.nan
-        if np.isfinite(f_px):
-            lens = camera_centre(np.array([records[i].H for i in idx]), f_px, pp)
-            nadir[idx] = lens[:, :2]
-            # each frame's own height (a handheld camera bobs by centimetres: 1 cm at
-            # 1.5 m is 0.05 % of k, 0.5 mm at a rock 1 m from the nadir); the
-            # homography's scale measures it, the video's estimate fixes the focal
-            k = np.where(np.isfinite(lens[:, 2]) & (lens[:, 2] > 2 * h_eff),
-                         1.0 - h_eff / np.where(lens[:, 2] > 0, lens[:, 2], 1.0), est.k)
+    Hs = np.array([records[i].H for i in idx])
+    f_px, nadir[idx], k = _nadir_and_k(Hs, est.height_m, est.k, h_eff, pp)
     centre = np.full((n, 2), np.nan)
     phi = np.full(n, np.nan)
     app = np.array([records[i].centre_app for i in idx]).reshape(-1, 2)
@@ -523,10 +550,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         np.maximum(misfit ** 2 - msig ** 2, 0.0) * (1.0 - gain) ** 2, axis=1)))
     nd = np.where(np.isfinite(nadir[idx]).all(axis=1, keepdims=True), nadir[idx], app)
     centre[idx] = correct_parallax(app, nd, k[:, None])
-    # the video-wide height's uncertainty moves a rock in proportion to its distance
-    # from the nadir (the camera following a fast rock lags it by a metre)
     sigma_parallax = np.zeros(n)
-    sigma_parallax[idx] = est.k_err * np.hypot(*(app - nd).T) if np.isfinite(est.k_err) else 0.0
+    sigma_parallax[idx] = _parallax_sigma(Hs, est, h_eff, pp, app, centre[idx], t[idx])
     measured = ok.copy()
     idx = _resolve_cells(records, t, centre, ok, calib, warnings, path, st)
     # (a frame whose cell index is not certain still gives the rock's angle)
