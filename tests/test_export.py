@@ -51,8 +51,10 @@ def test_velocities_match_the_simulated_truth_within_their_sigma(rho):
         # (over 80 draws each: mean 0.95-0.98, sd 0.10-0.15, 0.58-1.35; a windowed
         # derivative has few independent windows - CI drew 0.46 once, seed 1982217556;
         # and its AR(1) noise is estimated from ~200 rows: rho 0.28-0.80 for a true 0.5 -
-        # a full run drew 1.65, seed 1997124207, where 400 draws at rho 0.5 gave <= 1.50)
-        assert 0.4 < rms_pull < 1.8, f"{c}: pull rms {rms_pull:.2f} ({msg})"
+        # a full run drew 1.65, seed 1997124207, where 400 draws at rho 0.5 gave <= 1.50;
+        # and at the wide end 0.40, seeds 1963342514 and 1983800799, 2 in ~230 draws at
+        # rho 0.5: rho read high, sigma wide - the safe side, bounded at 0.35)
+        assert 0.35 < rms_pull < 1.8, f"{c}: pull rms {rms_pull:.2f} ({msg})"
         assert np.abs(pull).max() < 5, f"{c}: {np.abs(pull).max():.1f} sigma ({msg})"
     # the speed's own accuracy, in physical units: ~sigma / window
     assert np.sqrt(np.mean((out["speed"] - truth["speed"])[use] ** 2)) < 0.02, msg
