@@ -101,12 +101,14 @@ def _measurable_case(tmp_path, seed, tries: int = 3):
 
 
 def _check_no_wrong_row(m, what):
+    # (how many rows are measured is _measurable_case's to judge: a case measured in
+    # too few is redrawn there - asserted here, it failed before the redraw, seed
+    # 3928683759: 6 of 90 frames measured, none wrong)
     ok = m["ok"] == 1
     err = np.hypot(m.x - m.x_t, m.y - m.y_t)
     bad = ok & ((err > 0.010) | (err > 5 * m.sigma_xy))
     assert not bad.any(), (f"{what}: {int(bad.sum())} ok rows wrong, frames "
                            f"{list(m.frame[bad])[:8]}, errors up to {1e3 * err[bad].max():.0f} mm")
-    assert ok.sum() >= MIN_MEASURED, f"{what}: only {int(ok.sum())} frames measured"
 
 
 def test_lattice_lost_while_moving_fast_no_wrong_cell(tmp_path):
