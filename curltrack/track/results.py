@@ -355,20 +355,29 @@ def camera_turn(records, calib) -> tuple[np.ndarray, np.ndarray]:
     return frames[1:], rate
 
 
+def _layout_lever(rig: Rig) -> float:
+    """The marker layout's lever (m): the root of the markers' summed squared distances
+    from their centre (an angle's error is a marker's over it)."""
+    L = np.array([[m.x_m, m.y_m] for m in rig.markers])
+    return float(np.sqrt(np.sum((L - L.mean(0)) ** 2)))
+
+
 def _height(records, ok, rig: Rig, depth_eff: float, warnings: list) -> HeightEstimate:
     h_eff = rig.rock_height_m + depth_eff
     if rig.camera_height_m is not None:
         H = rig.camera_height_m + depth_eff
         return HeightEstimate(H, 0.0, (H - h_eff) / H, 0.0, 0, from_rig=True)
-    scales = np.array([records[i].scale for i in np.flatnonzero(ok)])
-    sig = np.array([records[i].sigma_m for i in np.flatnonzero(ok)])
+    rows = np.flatnonzero(ok)
+    scales = np.array([records[i].scale for i in rows])
+    sig = np.array([records[i].sigma_m for i in rows])
     # the layout's span in px (its markers' RMS distance from their centre, twice, at
     # the apparent scale): the frames' shared bias of LAYOUT_SPAN_BIAS_PX over it
-    L = np.array([[m.x_m, m.y_m] for m in rig.markers])
-    span_m = 2.0 * float(np.sqrt(np.mean(np.sum((L - L.mean(0)) ** 2, axis=1))))
-    px_per_m = float(np.nanmedian([records[i].spacing_px for i in np.flatnonzero(ok)])
-                     / (0.5 * (rig.spacing_x_m + rig.spacing_y_m))) if ok.any() else np.nan
-    span_px = span_m * float(np.nanmedian(scales)) * px_per_m if scales.size else np.nan
+    span_m = 2.0 * _layout_lever(rig) / np.sqrt(len(rig.markers))
+    span_px = np.nan
+    if rows.size:
+        px_per_m = (np.nanmedian([records[i].spacing_px for i in rows])
+                    / (0.5 * (rig.spacing_x_m + rig.spacing_y_m)))
+        span_px = span_m * float(np.nanmedian(scales)) * float(px_per_m)
     floor = LAYOUT_SPAN_BIAS_PX / span_px if np.isfinite(span_px) and span_px > 0 else 0.0
     est = estimate_height(scales, h_eff, weights=1.0 / np.maximum(sig, 1e-6) ** 2,
                           floor_rel=floor)
@@ -580,8 +589,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                          field=fld if (fld >= 0).any() else None)
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
-    L = np.array([[m.x_m, m.y_m] for m in rig.markers])
-    lever = np.sqrt(np.sum((L - L.mean(0)) ** 2))
+    lever = _layout_lever(rig)
     sig_m = np.array([r.sigma_m for r in records])
     sig_g = np.array([r.grid_sigma_m for r in records])
     sig_r = np.array([r.grid_residual_m for r in records])
