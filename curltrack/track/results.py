@@ -95,7 +95,7 @@ def _refuse(records, ok, shot, mask, why):
                         for k, v in shot.items()}
 
 def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, sys_theta,
-                    origin_sigma, theta0_sigma) -> dict:
+                    origin_sigma, theta0_sigma, origin_shared: float = 0.0) -> dict:
     """Per-row sigma_xy / sigma_theta whose random part is scaled on the video itself.
 
     ``pix_xy`` (N,; m per coordinate) and ``pix_theta`` (rad) are the rows' pixel-noise
@@ -106,7 +106,10 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     (:data:`SIGMA_SLOW_RATIO` x the shot's median random variance), the origin (the
     white part of its fit's value at t = 0, from the calibrated rows; ``origin_sigma``
     when given: a late first frame's extrapolation), ``sys_xy`` (parallax, the fields'
-    offset, the lattice's local misfit at the rock: what its correction leaves).
+    offset, the lattice's local misfit at the rock: what its correction leaves) and
+    ``origin_shared`` (m: the error the origin's first rows share,
+    :func:`~.shotframe.origin_check`; not counted where a row is judged against the
+    path through the others, which it moves alike).
     ``sigma_theta``: the random part, ``theta0_sigma`` with the slow error it cannot see
     (:data:`THETA0_SLOW_RATIO` x the median random variance) and ``sys_theta``.  Scales are NaN (the caller keeps
     its own sigmas) with fewer than :data:`MIN_SIGMA_DOF` degrees of freedom.
@@ -140,7 +143,7 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
         with np.errstate(invalid="ignore"):
             wrong = c["off_path"] & (c["miss"] > PATH_CLIP * sigma_xy)
         out.update(scale_xy=c["scale"], n_wrong=int(c["clipped"]), off_path=wrong,
-                   sigma_xy=sigma_xy)
+                   sigma_xy=np.hypot(sigma_xy, origin_shared))
     brt = [b for b in (stops.t_stop_rotation,) if b]
     c = path_scatter(tt, theta, pix_theta, runs=field, breaks=brt)
     if c["dof"] >= MIN_SIGMA_DOF:
@@ -608,7 +611,15 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # the origin's error is every row's (a fit to the first frames, extrapolated or not);
     # a frame's own sigma (sigma_own) is what tells a doubtful frame, below
     sigma_own = sigma_xy
-    sigma_xy = np.hypot(sigma_xy, shot["origin_sigma_m"])
+    origin_shared = shot["origin_check_sigma_m"]
+    sigma_xy = np.sqrt(sigma_xy ** 2 + shot["origin_sigma_m"] ** 2 + origin_shared ** 2)
+    if origin_shared > 0:
+        warnings.append(
+            f"{path}: the first frames' path misses the later frames' at t = 0 by "
+            f"{1e3 * shot['origin_check_difference_m']:.1f} mm, more than their scatter "
+            f"allows: the origin (the rock at t = 0) rests on frames that share an error "
+            f"(the camera starting to follow, the encoder's first frames), uncertain by "
+            f"~{1e3 * origin_shared:.1f} mm (included in sigma_xy)")
     origin_doubtful = bool(shot["origin_sigma_m"] > ORIGIN_WARN_M)
     if origin_doubtful:
         how = (f"the first measured frame is at t = {t[ok][0]:.2f} s: the origin (the rock "
@@ -735,6 +746,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         fld, stops,
         pix_xy=est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2), pix_theta=sig_m / max(lever, 1e-6),
         sys_xy=np.sqrt(sigma_parallax ** 2 + off_xy ** 2 + sig_local ** 2),
+        origin_shared=origin_shared,
         sys_theta=off_theta,
         # (the origin's own fit error where it is extrapolated or its frames disagree:
         # what the warning above says sigma_xy includes)
@@ -777,6 +789,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         n_frames_video=info.n_frames, codec=info.codec, **({"fields": True} if fields else {}),
         video_format=getattr(info, "describe", lambda: None)(),
         frame_origin_lattice_m=shot["origin"].tolist(),
+        origin_shared_err_m=origin_shared,
         frame_x_axis_lattice=shot["x_hat"].tolist(),
         frame_y_axis_lattice=shot["y_hat"].tolist(),
         frame_axis_source=shot["direction_source"],

@@ -303,6 +303,115 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
     return float(np.hypot(stat, model))
 
 
+#: The origin's check (:func:`origin_check`): the initial quadratic's value at t = 0
+#: against a cubic's through later rows, extrapolated back - over each of these windows
+#: (start after the first row, span; s): an error the first rows share that fades by
+#: ~0.4 s is seen best from the first (its white noise gain at 30 fps ~2.5x a row's
+#: sigma, the initial fit's 0.56x), one that lasts longer from the second (~1.8x).
+ORIGIN_CHECK_WINDOWS = ((0.5 * WINDOW_S, 2.0 * WINDOW_S), (0.75 * WINDOW_S, 3.0 * WINDOW_S))
+#: A window ends before this fraction of the rock's linear stop time L (speed /
+#: deceleration of the initial fit): under the steepest law allowed (phi = -1, where
+#: the rock stops at L / 2) it still has 45 % of its speed there.  The bounds on the
+#: path's next terms are taken at the window's end, at that law's speed and deceleration.
+ORIGIN_CHECK_STOP_FRACTION = 0.4
+#: The values disagree when their squared difference over its variance (white rows,
+#: both fits' bounds on the path's next term) exceeds this in either window: chi^2 with
+#: 2 degrees of freedom at 99.5 % (99 % for the two looks together).
+ORIGIN_CHECK_CHI2 = 10.6
+
+
+def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
+                 windows=ORIGIN_CHECK_WINDOWS) -> dict:
+    """The origin's error that its own fit cannot see: its first rows against the rest.
+
+    The first rows of a shot are measured as no others are: the camera starts to
+    follow the rock, which crosses the image fastest then, and the stream's encoder
+    codes the first frames of a moving scene.  An error those rows share bends the
+    initial quadratic with them and leaves no scatter about it (a rendered ladder camera
+    coded at 1.4 Mbit/s: its first 10 rows lagged ~3 mm behind the rock - the encoder's
+    trailing edge - and every row of the shot was 3.6 mm off under a 0.6 mm
+    ``sigma_xy``).  Here a cubic through later rows (``windows``) is extrapolated back
+    to t = 0: where the two values differ by more than the rows' white scatter and the
+    fits' bounds on the path's next term allow (:data:`ORIGIN_CHECK_CHI2`), the excess
+    is the origin's systematic error, which no one can place in either fit.
+
+    The bounds: a deceleration a = k u^phi (|phi| <= :data:`MAX_ABS_PHI`) changes at
+    phi a^2 / u (the quadratic's cubic term, as :func:`_origin_sigma`) and that rate at
+    phi (2 phi - 1) a^3 / u^2, at most 3 a^3 / u^2 (the cubic's quartic term is a
+    twenty-fourth of it).
+
+    What it cannot see: an error under ~3x the check's white noise (~8x a row's sigma
+    for the short window), or one that lasts as long as the windows.
+
+    Parameters
+    ----------
+    t : (N,) array
+        Times of the measured rows (s), increasing.
+    q : (N, k) array
+        Their coordinates (m).
+    min_cubic : float
+        The path's smallest cubic coefficient assumed (m/s^3), as :func:`_origin_sigma`.
+    windows : sequence of (start, span)
+        The check's windows (s after the first row, s).
+
+    Returns
+    -------
+    dict
+        ``sigma`` (per coordinate, m; 0 when they agree or no check is possible),
+        ``difference`` (m: the values' distance in the window that disagrees most),
+        ``chi2`` (its squared difference over the variance; NaN when no window can be
+        fitted: too few rows, or a rock that stops too soon).
+    """
+    t = np.asarray(t, float)
+    q = np.asarray(q, float).reshape(len(t), -1)
+    out = {"sigma": 0.0, "difference": 0.0, "chi2": float("nan")}
+    if len(t) < 16:
+        return out
+    deg1, A1, coef1, res1 = _window_fit(t, q)
+    if deg1 < 2:
+        return out
+    v, a = coef1[1], 2.0 * coef1[2]
+    speed = max(float(np.linalg.norm(v)), 0.05)
+    accel = float(np.linalg.norm(a))
+    decel = -float(np.sum(a * v)) / speed
+    t_stop = speed / decel if decel > 0 else np.inf
+    p1 = np.linalg.pinv(A1)[0]
+    cubic1 = max(min_cubic, MAX_ABS_PHI * accel ** 2 / speed / 6.0)
+    for from_s, span_s in windows:
+        start = t[0] + from_s
+        end = min(start + span_s, t[0] + ORIGIN_CHECK_STOP_FRACTION * t_stop)
+        sel = (t >= start) & (t <= end)
+        if np.count_nonzero(sel) < 12 or end - start < 0.5 * span_s:
+            continue
+        # speed and deceleration at the window's end under a = a0 (u0 / u)
+        # (phi = -1: u^2 falls linearly), bounding the path's terms over the window
+        u_end = speed * np.sqrt(max(1.0 - 2.0 * (end - t[0]) / t_stop, 0.05))
+        a_end = accel * speed / u_end
+        quartic = 3.0 * MAX_ABS_PHI * a_end ** 3 / u_end ** 2 / 24.0
+        A2 = np.vander(t[sel], 4, increasing=True)
+        coef2, *_ = np.linalg.lstsq(A2, q[sel], rcond=None)
+        p2 = np.linalg.pinv(A2)[0]
+        # each fit's value at t = 0 is a weighted sum of its rows: the difference's
+        # white variance from the weights of both on the rows' union (they share some);
+        # the residuals' mean square, not a robust scatter: the few rows noisier than
+        # the rest (blur, glare) weigh in the values as in the residuals
+        times = np.union1d(A1[:, 1], A2[:, 1])
+        w = np.zeros(times.size)
+        w[np.searchsorted(times, A1[:, 1])] += p1
+        w[np.searchsorted(times, A2[:, 1])] -= p2
+        res = np.vstack([res1, q[sel] - A2 @ coef2])
+        dof = max(len(res) - A1.shape[1] - A2.shape[1], 1)
+        white2 = float(np.sum(res ** 2)) / dof / res.shape[1] * float(w @ w)
+        model2 = ((cubic1 * float(p1 @ A1[:, 1] ** 3)) ** 2
+                  + (quartic * float(p2 @ A2[:, 1] ** 4)) ** 2)
+        d = coef1[0] - coef2[0]
+        chi2 = float(np.sum(d ** 2)) / max(white2 + model2, 1e-30)
+        if not chi2 <= out["chi2"]:  # (the first, or a larger one)
+            out.update(difference=float(np.linalg.norm(d)), chi2=chi2,
+                       sigma=(float(np.sqrt(max(float(np.mean(d ** 2)) - white2 - model2, 0.0)))
+                              if chi2 > ORIGIN_CHECK_CHI2 else 0.0))
+    return out
+
 #: Largest rho (per field step) of an interlaced field's angle noise
 #: (:func:`_frame_noise`): its variogram is measured over the noise model's lags of up to
 #: 6 steps, and a correlation still above 1/4 at the longest of them is persistence
@@ -398,7 +507,10 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
         ``direction_source`` ("travel" or "image up"), ``origin_sigma_m``: the origin's
         1 sigma per coordinate (m: its fit's error, plus the extrapolation back to t = 0
         when the first measured frame is later), ``origin_extrapolated``: whether it is
-        (bool), ``theta0_sigma_rad``: theta0's (rad, likewise).
+        (bool), ``origin_check_sigma_m`` and ``origin_check_difference_m``: the error
+        its first rows share, which its fit cannot see (m per coordinate; 0 when the
+        later rows agree) and the two values' distance (m; :func:`origin_check`),
+        ``theta0_sigma_rad``: theta0's (rad, likewise).
     """
     st = TrackingSettings() if settings is None else settings
     min_travel = st.min_travel_m
@@ -446,6 +558,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     late = _first_late(tt)
     # the origin is a fit even when the first frame is at t = 0: its error is every row's
     origin_sigma = _origin_sigma(tt, cc, st.max_deceleration_m_s2, extrapolated=late)
+    # ... and what its first rows share, which its fit cannot see
+    check = origin_check(tt, cc)
     # every angle is taken from theta0, itself a fit: its error is every row's (the
     # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
     # under a 0.9 deg sigma)
@@ -456,5 +570,7 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
             "origin_sigma_m": float(origin_sigma), "origin_extrapolated": bool(late),
+            "origin_check_sigma_m": check["sigma"],
+            "origin_check_difference_m": check["difference"],
             "theta_unsure": np.isin(np.arange(t.size), idx[~th_sure]),
             "theta0_sigma_rad": float(theta0_sigma)}
