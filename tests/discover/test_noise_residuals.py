@@ -44,8 +44,12 @@ def test_noise_of_an_irregular_clock_is_the_positions_not_the_timestamps():
     v0 = rng.uniform(1.5, 2.5)
     q = v0 * t - 0.04 * t**2 + rng.normal(0, sigma, n)
     nz = estimate_noise(np.arange(n), q, t=t)
-    assert nz.sigma == pytest.approx(sigma, rel=0.2), f"seed {seed}: {nz}"
-    assert nz.rho < 0.35, f"seed {seed}: {nz}"
+    # (the bands hold the estimator's own spread at n = 250, the same with and without
+    # the jitter over 3000 draws: sigma / truth 0.85-1.20 and rho up to 0.42 at their
+    # 0.1 % tails - CI seed 715952904 drew rho 0.40; read on the frame index, the
+    # jitter made sigma ~6x)
+    assert nz.sigma == pytest.approx(sigma, rel=0.25), f"seed {seed}: {nz}"
+    assert nz.rho < 0.45, f"seed {seed}: {nz}"
 
 
 def test_noise_ignores_a_velocity_jump():
