@@ -249,9 +249,10 @@ def test_theta0_window_follows_a_spin_that_slows_fast():
         assert miss < 0.1, f"seed {seed}: v0 {v0:.2f}, {t[-1]:.1f} s: theta0 off by {miss:.3f} deg"
 
 
-def _simulated_rows(rng, fps, sigma_m):
+def _simulated_rows(rng, fps, sigma_m, rho=0.0):
     """A simulated shot's first 4 s at ``fps`` as tracked rows (t, centre (N, 2), the
-    true centres), white noise of ``sigma_m`` (m) per coordinate, some rows 3x noisier."""
+    true centres), noise of ``sigma_m`` (m) per coordinate - AR(1) of ``rho`` per row,
+    then some rows 3x noisier."""
     from curltrack.physics.shot import ShotModel
     from curltrack.simulate import simulate_series
 
@@ -261,20 +262,25 @@ def _simulated_rows(rng, fps, sigma_m):
     d = d[d.t <= 4.0]
     t, true = d.t.to_numpy(), d[["x", "y"]].to_numpy()
     sig = sigma_m * rng.choice([1.0, 3.0], size=t.size, p=[0.9, 0.1])
-    return t, true + rng.normal(0.0, 1.0, true.shape) * sig[:, None], true
+    e = rng.normal(0.0, 1.0, true.shape)
+    for k in range(1, len(e)):
+        e[k] = rho * e[k - 1] + np.sqrt(1.0 - rho * rho) * e[k]
+    return t, true + e * sig[:, None], true
 
 
 def test_origin_check_says_nothing_on_clean_rows():
     """Rows of a simulated shot (the paper's law at random phi, speed, spin; 25-60 fps;
-    white noise 0.3-2 mm, some rows 3x noisier): the first rows and the later ones
-    agree, and the check adds an error to the origin in at most 5 % of draws (its chi^2
-    gate is at 99 % for its two windows together; 1-4 % seen on these tails)."""
+    noise 0.3-2 mm, white or AR(1) up to rho 0.6 per row as a tracker's persists, some
+    rows 3x noisier): the first rows and the later ones agree, and the check adds an
+    error to the origin in at most 5 % of draws (its chi^2 gate is at 99 % for its two
+    windows together; 1-4 % seen)."""
     seed = int(np.random.SeedSequence().entropy % 2**32)
     rng = np.random.default_rng(seed)
     n, flagged, checked = 200, 0, 0
     for _ in range(n):
         t, centre, _ = _simulated_rows(rng, float(rng.choice([25.0, 30.0, 60.0])),
-                                       rng.uniform(0.3e-3, 2e-3))
+                                       rng.uniform(0.3e-3, 2e-3),
+                                       rho=float(rng.choice([0.0, rng.uniform(0.0, 0.6)])))
         out = to_shot_frame(t, centre, 0.0 * t, np.ones(t.size, bool))
         checked += out["origin_check_difference_m"] > 0
         flagged += out["origin_check_sigma_m"] > 0
