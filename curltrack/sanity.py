@@ -302,12 +302,16 @@ def bound_rows(series_list, max_rows: int = DISCOVER_MAX_ROWS):
     n = sum(int((s.data["ok"] == 1).sum()) for s in series_list)
     if n <= max_rows:
         return list(series_list), []
-    k = int(np.ceil(n / max_rows))
-
-    def thin(d):  # frame // k: consecutive kept rows stay consecutive (the noise model)
+    def thin(d, k):  # frame // k: consecutive kept rows stay consecutive (the noise model)
         return d.iloc[::k].assign(frame=d["frame"].iloc[::k] // k).reset_index(drop=True)
 
-    out = [replace(s, data=thin(s.data)) for s in series_list]
+    def kept(k):  # (each series keeps its first row: n / k rounded up per series)
+        return sum(int((s.data["ok"].iloc[::k] == 1).sum()) for s in series_list)
+
+    k = int(np.ceil(n / max_rows))
+    while kept(k) > max_rows:  # (two series of 4001 and 3999 rows, k = 2: 4001 kept)
+        k += 1
+    out = [replace(s, data=thin(s.data, k)) for s in series_list]
     return out, [f"{n} measured rows is more than discover fits at once ({max_rows}): "
                  f"every {k}th row used (the noise per point and the residuals' shape "
                  "are kept; fewer points make weak effects harder to see)"]

@@ -131,25 +131,42 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
         dt_row = np.median(np.diff(t[rows])) if fps is None else 1.0 / fps
         step = max(KNOT_S, MIN_ROWS_PER_KNOT * dt_row)
         cut = np.flatnonzero(np.diff(t[rows]) > max(GAP_S, 3 * dt_row)) + 1
+        # the rows a spline will fit: runs long enough, less their short parts between
+        # gaps of a few frames (what judges a short part: see below)
+        spline_rows = np.zeros(len(t), bool)
+        for seg in np.split(rows, cut):
+            if len(seg) >= 2 * MIN_ROWS_PER_KNOT:
+                inner = np.flatnonzero(np.diff(t[seg]) > 3 * dt_row) + 1
+                for part in np.split(seg, inner):
+                    spline_rows[part] = not (inner.size and len(part) < 2 * MIN_ROWS_PER_KNOT)
+        t_fit = t[spline_rows]
         for seg in np.split(rows, cut):
             if len(seg) < 2 * MIN_ROWS_PER_KNOT:
                 short.append((lab, seg))
                 continue
             ts, qs, ss = t[seg], q[seg], sig[seg]
             # a few rows between gaps shorter than GAP_S: the spline would bend to
-            # them, so they are judged by their neighbours and left out of its fit (and
-            # of the scale: 4 rows 25-60 sigma off beside a 0.17 s gap, fitted, made the
-            # scale ~5x and hid themselves - test seed 1957155334)
+            # them, so they are judged by their neighbours - and, where rows on both
+            # sides can judge them, left out of its fit and of the scale (4 rows 25-60
+            # sigma off beside a 0.17 s gap, fitted, made the scale ~5x and hid
+            # themselves - test seed 1957155334)
             inner = np.flatnonzero(np.diff(ts) > 3 * dt_row) + 1
+            parts = np.split(np.arange(len(seg)), inner)
+            short_part = np.zeros(len(seg), bool)
             alone = np.zeros(len(seg), bool)
-            for part in np.split(np.arange(len(seg)), inner):
+            for part in parts:
                 if inner.size and len(part) < 2 * MIN_ROWS_PER_KNOT:
-                    alone[part] = True
+                    short.append((lab, seg[part]))
+                    short_part[part] = True
+                    # (only where fitted rows on both sides can judge it: left out
+                    # otherwise, it would be judged by the spline's extrapolation or
+                    # across a hole - a clip whose strict layout test refused every few
+                    # frames lost 45 of 70 clean rows that way, a broom clip 5 rows
+                    # amid 0.7 s of hidden ones)
+                    alone[part] = _judged_by_neighbours(t_fit, ts[part[0]], ts[part[-1]],
+                                                        breaks)
             if (~alone).sum() < 2 * MIN_ROWS_PER_KNOT:
-                short.extend((lab, seg[part]) for part in np.split(np.arange(len(seg)), inner))
-                continue
-            short.extend((lab, seg[part]) for part in np.split(np.arange(len(seg)), inner)
-                         if alone[part[0]])
+                alone[:] = False   # (too few rows left for a spline: all fitted, as before)
             main = ts[~alone]
             knots = _knots(main[0], main[-1], step, breaks)
             keep = ~alone
@@ -188,15 +205,17 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
             clipped += int((~keep & ~alone).sum())
             off_path[seg[~keep & ~alone]] = True
             miss[seg[~alone]] = np.abs(z[~alone]).max(axis=1) * ss[~alone]
-            fitted_rows[seg[keep]] = True
-            if alone.any():
+            fitted_rows[seg[keep & ~short_part]] = True
+            inside = alone & (ts > main[0]) & (ts < main[-1])
+            if inside.any():
                 # (the spline's own prediction for them, should their neighbours not
-                # be enough to judge them: as it judges the rows it left out)
-                zn = np.abs(z[alone]) / np.sqrt(1 + h[alone])[:, None]
+                # be enough to judge them after all - the spline's clipping took some:
+                # as it judges the rows it left out, where it interpolates)
+                zn = np.abs(z[inside]) / np.sqrt(1 + h[inside])[:, None]
                 s = robust_sigma(z[keep] / np.sqrt(np.clip(1 - h[keep], 0.05, None))[:, None],
                                  centre=0.0)
-                spline_z[seg[alone]] = zn.max(axis=1) / max(s, 1e-12)
-                spline_miss[seg[alone]] = np.abs(z[alone]).max(axis=1) * ss[alone]
+                spline_z[seg[inside]] = zn.max(axis=1) / max(s, 1e-12)
+                spline_miss[seg[inside]] = np.abs(z[inside]).max(axis=1) * ss[inside]
     if den > 0:
         scale = float(np.sqrt(num / den))
         out.update(scale=scale, dof=den, n=n_used, clipped=clipped)
@@ -215,6 +234,19 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
     return out
 
 
+def _judged_by_neighbours(t_fit, t0: float, t1: float, breaks) -> bool:
+    """Whether :func:`_short_run` can judge a run from ``t0`` to ``t1`` (s) by rows at
+    times ``t_fit``: no stop inside it and, on its side of any stop, at least
+    :data:`NEIGHBOUR_ROWS` of them within :data:`NEIGHBOUR_S` before and after it."""
+    near = (t_fit >= t0 - NEIGHBOUR_S) & (t_fit <= t1 + NEIGHBOUR_S)
+    for b in breaks:
+        if t0 < b < t1:
+            return False
+        near &= (t_fit > b) if b <= t0 else (t_fit < b)
+    return min(np.count_nonzero(near & (t_fit < t0)),
+               np.count_nonzero(near & (t_fit > t1))) >= NEIGHBOUR_ROWS
+
+
 def _short_run(t, q, sig, seg, fitted, breaks):
     """How far each row of a short run ``seg`` lies off the path through the ``fitted``
     rows within :data:`NEIGHBOUR_S` of it on either side (a weighted quadratic in t,
@@ -223,14 +255,12 @@ def _short_run(t, q, sig, seg, fitted, breaks):
     column's miss) - or (None, None) with fewer than :data:`NEIGHBOUR_ROWS` rows on a
     side or a stop inside the run."""
     t0, t1 = t[seg].min(), t[seg].max()
+    if not _judged_by_neighbours(t[fitted], t0, t1, breaks):
+        return None, None
     near = fitted & (t >= t0 - NEIGHBOUR_S) & (t <= t1 + NEIGHBOUR_S)
     for b in breaks:
-        if t0 < b < t1:
-            return None, None
         near &= (t > b) if b <= t0 else (t < b)
     rows = np.flatnonzero(near)
-    if min((t[rows] < t0).sum(), (t[rows] > t1).sum()) < NEIGHBOUR_ROWS:
-        return None, None
     deg = 3 if len(rows) >= 16 else 2
     tc = 0.5 * (t0 + t1)
     A = np.vander(t[rows] - tc, deg + 1) / sig[rows, None]
