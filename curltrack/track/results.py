@@ -15,7 +15,7 @@ from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, corr
                        LAYOUT_SPAN_BIAS_PX, estimate_height, focal_for_height,
                        layout_scale_mismatch)
 from .scatter import CLIP as PATH_CLIP
-from .shotframe import WINDOW_S, initial_state, to_shot_frame, window_rows
+from .shotframe import WINDOW_S, initial_state, origin_weights, to_shot_frame
 from ..series.stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
@@ -130,8 +130,7 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
         idx = np.flatnonzero(ok & np.isfinite(xy).all(axis=1))
         if origin_sigma is None:
             # the origin: shotframe.initial_state's fit to the first rows
-            m, deg = window_rows(t[idx])
-            p0 = np.linalg.pinv(np.vander(t[idx[:m]], deg + 1, increasing=True))[0]
+            m, p0 = origin_weights(t[idx])
             first = idx[:m]
             origin_sigma = float(np.sqrt(np.sum(p0 ** 2 * fast[first] ** 2)))
         slow2 = SIGMA_SLOW_RATIO * float(np.median(fast[idx])) ** 2
@@ -659,9 +658,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
             # late rows under a 0.9 mm sigma)
             idx_ok = np.flatnonzero(ok & np.isfinite(off_xy))
             if idx_ok.size >= 2:
-                m_w, deg_w = window_rows(t[idx_ok])
+                m_w, p0 = origin_weights(t[idx_ok])
                 first = idx_ok[:m_w]
-                p0 = np.linalg.pinv(np.vander(t[first], deg_w + 1, increasing=True))[0]
                 origin_pull = abs(float(p0 @ off_xy[first]))
                 origin_shared = float(np.hypot(origin_shared, origin_pull))
                 sigma_xy = np.hypot(sigma_xy, origin_pull)

@@ -136,9 +136,8 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
         spline_rows = np.zeros(len(t), bool)
         for seg in np.split(rows, cut):
             if len(seg) >= 2 * MIN_ROWS_PER_KNOT:
-                inner = np.flatnonzero(np.diff(t[seg]) > 3 * dt_row) + 1
-                for part in np.split(seg, inner):
-                    spline_rows[part] = not (inner.size and len(part) < 2 * MIN_ROWS_PER_KNOT)
+                for part, is_short in _parts(t[seg], dt_row):
+                    spline_rows[seg[part]] = not is_short
         t_fit = t[spline_rows]
         for seg in np.split(rows, cut):
             if len(seg) < 2 * MIN_ROWS_PER_KNOT:
@@ -150,12 +149,10 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
             # sides can judge them, left out of its fit and of the scale (4 rows 25-60
             # sigma off beside a 0.17 s gap, fitted, made the scale ~5x and hid
             # themselves - test seed 1957155334)
-            inner = np.flatnonzero(np.diff(ts) > 3 * dt_row) + 1
-            parts = np.split(np.arange(len(seg)), inner)
             short_part = np.zeros(len(seg), bool)
             alone = np.zeros(len(seg), bool)
-            for part in parts:
-                if inner.size and len(part) < 2 * MIN_ROWS_PER_KNOT:
+            for part, is_short in _parts(ts, dt_row):
+                if is_short:
                     short.append((lab, seg[part]))
                     short_part[part] = True
                     # (only where fitted rows on both sides can judge it: left out
@@ -211,10 +208,8 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
                 # (the spline's own prediction for them, should their neighbours not
                 # be enough to judge them after all - the spline's clipping took some:
                 # as it judges the rows it left out, where it interpolates)
-                zn = np.abs(z[inside]) / np.sqrt(1 + h[inside])[:, None]
-                s = robust_sigma(z[keep] / np.sqrt(np.clip(1 - h[keep], 0.05, None))[:, None],
-                                 centre=0.0)
-                spline_z[seg[inside]] = zn.max(axis=1) / max(s, 1e-12)
+                # (zn and s: the last fit's, whose kept rows are ``keep``)
+                spline_z[seg[inside]] = np.abs(zn[inside]).max(axis=1) / max(s, 1e-12)
                 spline_miss[seg[inside]] = np.abs(z[inside]).max(axis=1) * ss[inside]
     if den > 0:
         scale = float(np.sqrt(num / den))
@@ -232,6 +227,15 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
                 miss[seg] = spline_miss[seg]
                 off_path[seg[spline_z[seg] > CLIP]] = True
     return out
+
+
+def _parts(ts, dt_row: float) -> list:
+    """One run's rows (times ``ts``, s) split at gaps of more than three row steps
+    ``dt_row``: (indices, whether the part is too short for a spline of its own) each -
+    a run without such a gap is one part, never short."""
+    inner = np.flatnonzero(np.diff(ts) > 3 * dt_row) + 1
+    return [(part, bool(inner.size) and len(part) < 2 * MIN_ROWS_PER_KNOT)
+            for part in np.split(np.arange(len(ts)), inner)]
 
 
 def _judged_by_neighbours(t_fit, t0: float, t1: float, breaks) -> bool:

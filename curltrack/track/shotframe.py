@@ -174,6 +174,14 @@ def window_rows(t, window_s: float = WINDOW_S, min_points: int = 8) -> tuple[int
     return n, (2 if n >= 6 else (1 if n >= 2 else 0))
 
 
+def origin_weights(t) -> tuple[int, np.ndarray]:
+    """(m, p0): :func:`initial_state`'s fit takes its value at t = 0 as ``p0 @ q[:m]``
+    of the first ``m`` rows at times ``t`` (before its robust pass) - how an error
+    of those rows reaches the origin."""
+    m, deg = window_rows(t)
+    return m, np.linalg.pinv(np.vander(t[:m], deg + 1, increasing=True))[0]
+
+
 def _first_late(t) -> bool:
     """Whether the first of the times ``t`` (s) is after t = 0 by more than half a
     frame step: then a value at t = 0 is extrapolated (a rolling shutter times the
