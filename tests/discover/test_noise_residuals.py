@@ -194,3 +194,34 @@ def test_whitening_honours_gaps_in_the_frames():
     assert np.all(np.abs(var - 1.0) < 0.12), (seed, rho, gap, var.min(), var.max())
     lag1 = np.mean(w[1:] * w[:-1], axis=1)
     assert np.all(np.abs(lag1) < 0.1), (seed, rho, np.abs(lag1).max())
+
+
+def test_jump_test_tells_an_instruments_steps_from_a_misfit_that_ends_at_a_stop():
+    """Residuals of a model that misses the motion smoothly - a slow swing of several
+    sigma, and a spin the model ends later than the rock did (a ramp of large increments,
+    all of one sign, in the rows just after the stop) - are not jumps; an instrument's
+    step-like errors are, wherever the stop falls.  (Each side is wrong in ~0.3-0.5 % of
+    draws over 2000 - a step series with few steps, white noise at the test's level;
+    20 draws here, at most two wrong.)"""
+    from curltrack.discover.residuals import JUMP_LEVEL, jump_p_value
+    from curltrack.instrument import draw_noise
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    misfit_called_jumps, steps_called_smooth = 0, 0
+    for _ in range(20):
+        rate = float(rng.choice([10.0, 25.0, 30.0]))
+        duration = rng.uniform(15.0, 25.0)
+        t = np.arange(int(duration * rate)) / rate
+        t_stop = duration - rng.uniform(0.5, 1.0)
+        sigma = rng.uniform(1e-3, 3e-3)
+        swing = (rng.uniform(3, 8) * sigma
+                 * np.sin(2 * np.pi * t / rng.uniform(6, 15) + rng.uniform(0, 6)))
+        ramp = (rng.choice([-1, 1]) * rng.uniform(20, 40) * sigma
+                * np.clip((t - t_stop) / 0.3, 0, 1))
+        misfit = swing + ramp + rng.normal(0, sigma, t.size)
+        misfit_called_jumps += jump_p_value(misfit, t, [t_stop]) <= JUMP_LEVEL
+        steps = draw_noise("steps", t, rng.uniform(0.03, 0.1), rng)
+        steps_called_smooth += jump_p_value(steps + swing, t, [t_stop]) > JUMP_LEVEL
+    assert misfit_called_jumps <= 2, f"seed {seed}"
+    assert steps_called_smooth <= 2, f"seed {seed}"
