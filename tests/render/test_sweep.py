@@ -61,6 +61,7 @@ def test_sweep_score_on_a_known_error():
     sig = rng.uniform(0.5e-3, 2e-3)
     f0 = truth[truth.field == 0].reset_index(drop=True)
     err = rng.normal(0, sig, (n, 3))
+    err[:, :2] += rng.normal(0, sig, 2)     # every row's share: the origin's error
     tracked = pd.DataFrame(dict(frame=np.arange(n), t=t, x=f0.x + err[:, 0], y=f0.y + err[:, 1],
                                 theta=f0.theta + err[:, 2], ok=1, sigma_xy=sig,
                                 sigma_theta=2 * sig))
@@ -73,6 +74,8 @@ def test_sweep_score_on_a_known_error():
     assert out["max_mm"] == pytest.approx(1e3 * e.max()), seed
     assert out["z_xy"] == pytest.approx(np.std(err[10:, :2]) / sig), seed
     assert out["z_theta"] == pytest.approx(np.std(err[10:, 2]) / (2 * sig)), seed
+    assert out["rms_z_xy"] == pytest.approx(np.sqrt(np.mean(err[10:, :2] ** 2)) / sig), seed
+    assert out["shared_mm"] == pytest.approx(1e3 * np.hypot(*err[10:, :2].mean(axis=0))), seed
 
 
 def test_sweep_row_for_a_setup_the_renderer_refuses(tmp_path, monkeypatch):
@@ -94,3 +97,14 @@ def test_sweep_row_for_a_setup_the_renderer_refuses(tmp_path, monkeypatch):
     row = _sweep_module().run(0, seed, 1, 0.25, tmp_path, track=True, random_kind=True)
     assert row["error"].startswith("render: ") and "folds over" in row["error"], (seed, row)
     assert "kind" in row and "frames" not in row, (seed, row)
+
+
+def test_sweep_table_pools_rms_z_by_scan():
+    mod = _sweep_module()
+    rows = [dict(i=0, scan="progressive", rms_z_xy=0.6), dict(i=1, scan="progressive", rms_z_xy=1.4),
+            dict(i=2, scan="interlaced", rms_z_xy=2.0), dict(i=3, scan="progressive",
+                                                           error="render: refused")]
+    pooled = mod.pooled_rms_z(rows)
+    assert pooled["progressive"] == (pytest.approx(np.sqrt((0.36 + 1.96) / 2)), 2)
+    assert pooled["interlaced"] == (pytest.approx(2.0), 1)
+    assert "Pooled RMS e/σ xy: progressive 1.08 (2 set-ups); interlaced 2.00" in mod.table(rows)
