@@ -258,7 +258,17 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                                                    r0=fit0.r)
     named = [sc for sc in scores if not sc.extension]
     supported_named = [(sc, f) for sc, f in supported if not sc.extension]
-    if ext is not None:
+    # (an extension too must take the baseline's smooth misfit away: a peer's physics
+    # was 'extended' by a periodic friction field that left theta 9x its scatter)
+    ext_smooth = (smooth_misfit(ext._model, ext.fit)
+                  if ext is not None and smooth and getattr(ext, "_model", None) is not None
+                  else [])
+    if ext is not None and ext_smooth:
+        verdict = "unexplained"
+        best_fit, best_model_name = ext.fit, ext.name
+        unexplained = dict(shot=ext_smooth[0]["shot"], coord=ext_smooth[0]["coord"],
+                           after_model=ext.name, smooth_misfit=ext_smooth)
+    elif ext is not None:
         verdict = "extended"
         best_fit, best_model_name, best_params = ext.fit, ext.name, ext.params
         extension = extension_object(ext, next(f for sc, f in supported if sc is ext).summary(),
@@ -277,7 +287,7 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
             ambiguous = better
         # a baseline that misses the shots smoothly (the model's misfit, not noise) is
         # explained by a named effect only if the effect takes that misfit away: a peer
-        # simulator's physics, none of the vocabulary, missed theta 3.2 times its rows'
+        # simulator's physics, none of the vocabulary, missed theta 3.7 times its rows'
         # scatter after a "pick" of 0.02 m/s at the stop that took the largest part
         # (delta-BIC 6221, 2 of 40 draws; a late curl once)
         smooth_after = (smooth_misfit(sc._model, sc.fit)
