@@ -139,7 +139,7 @@ def pooled_rms_z(rows) -> dict:
     and over the interlaced set-ups that were tracked: ``{scan: (value, n)}``."""
     out = {}
     for scan in ("progressive", "interlaced"):
-        v = [r["rms_z_xy"] for r in rows if r.get("scan") == scan and r.get("rms_z_xy")]
+        v = [r["rms_z_xy"] for r in rows if r.get("scan") == scan and r.get("rms_z_xy") is not None]
         if v:
             out[scan] = (float(np.sqrt(np.mean(np.square(v)))), len(v))
     return out

@@ -223,6 +223,28 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds, base_jump=None) -> Findin
     return Finding(**kw)
 
 
+def _smooth_left(sc, smooth) -> list:
+    """The smooth misfits (:func:`~curltrack.discover.residuals.smooth_misfit`) that
+    candidate ``sc``'s refit still leaves, where the baseline had some (``smooth``).
+
+    A baseline that misses the shots smoothly (the model's misfit, not noise) is
+    explained by a named effect or an extension only if it takes that misfit away: a
+    peer simulator's physics, none of the vocabulary, missed theta 3.7 times its rows'
+    scatter after a "pick" of 0.02 m/s at the stop that took the largest part
+    (delta-BIC 6221; 2 of 40 draws, a late curl once).
+    """
+    if not smooth or sc._model is None or sc.fit is None:
+        return []
+    return smooth_misfit(sc._model, sc.fit)
+
+
+def _smooth_unexplained(sc, left) -> dict:
+    """``unexplained`` of a verdict whose best candidate ``sc`` leaves the smooth
+    misfits ``left`` (:func:`_smooth_left`)."""
+    return dict(shot=left[0]["shot"], coord=left[0]["coord"], after_model=sc.name,
+                smooth_misfit=left)
+
+
 def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=None,
                  not_tested=None, warnings=(), smooth=()) -> DiscoveryReport:
     """Assemble the report and decide the verdict (rule in :mod:`curltrack.discover`).
@@ -259,15 +281,12 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
     named = [sc for sc in scores if not sc.extension]
     supported_named = [(sc, f) for sc, f in supported if not sc.extension]
     # (an extension too must take the baseline's smooth misfit away: a peer's physics
-    # was 'extended' by a periodic friction field that left theta 9x its scatter)
-    ext_smooth = (smooth_misfit(ext._model, ext.fit)
-                  if ext is not None and smooth and getattr(ext, "_model", None) is not None
-                  else [])
-    if ext is not None and ext_smooth:
+    # was 'extended' by a periodic friction field that left theta 7.8x its scatter)
+    ext_smooth = _smooth_left(ext, smooth) if ext is not None else []
+    if ext_smooth:
         verdict = "unexplained"
         best_fit, best_model_name = ext.fit, ext.name
-        unexplained = dict(shot=ext_smooth[0]["shot"], coord=ext_smooth[0]["coord"],
-                           after_model=ext.name, smooth_misfit=ext_smooth)
+        unexplained = _smooth_unexplained(ext, ext_smooth)
     elif ext is not None:
         verdict = "extended"
         best_fit, best_model_name, best_params = ext.fit, ext.name, ext.params
@@ -285,21 +304,14 @@ def build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds=Non
                         and judged_like(sc, o, fit0.r)[1] >= sc.delta_bic + AMBIGUITY_MARGIN)
         if better:
             ambiguous = better
-        # a baseline that misses the shots smoothly (the model's misfit, not noise) is
-        # explained by a named effect only if the effect takes that misfit away: a peer
-        # simulator's physics, none of the vocabulary, missed theta 3.7 times its rows'
-        # scatter after a "pick" of 0.02 m/s at the stop that took the largest part
-        # (delta-BIC 6221, 2 of 40 draws; a late curl once)
-        smooth_after = (smooth_misfit(sc._model, sc.fit)
-                        if smooth and getattr(sc, "_model", None) is not None else [])
+        smooth_after = _smooth_left(sc, smooth)
         if base_bound:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name,
                                baseline_at_bound=base_bound)
         elif smooth_after:
             verdict = "unexplained"
-            unexplained = dict(shot=smooth_after[0]["shot"], coord=smooth_after[0]["coord"],
-                               after_model=sc.name, smooth_misfit=smooth_after)
+            unexplained = _smooth_unexplained(sc, smooth_after)
         elif sc.structure_after.structured:
             verdict = "unexplained"
             unexplained = dict(sc.structure_after.where or {}, after_model=sc.name)

@@ -86,6 +86,8 @@ class CandidateScore:
     #: the smallest size its threshold lets be seen (:func:`scoring.detection_limits`)
     limits: dict | None = None
     _scale: np.ndarray | None = None
+    #: the refitted model (with :attr:`fit`; None when the candidate was not refitted)
+    _model: JointModel | None = None
     _refine: tuple | None = None
     _scan: tuple | None = None
     _blocks: list | None = None
