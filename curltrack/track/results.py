@@ -15,7 +15,7 @@ from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, corr
                        LAYOUT_SPAN_BIAS_PX, estimate_height, focal_for_height,
                        layout_scale_mismatch)
 from .scatter import CLIP as PATH_CLIP
-from .shotframe import WINDOW_S, initial_state, origin_weights, to_shot_frame
+from .shotframe import WINDOW_S, initial_state, origin_weights, row_weights, to_shot_frame
 from ..series.stops import detect_stops
 
 __all__ = ["build_series", "frame_ranges"]
@@ -95,7 +95,8 @@ def _refuse(records, ok, shot, mask, why):
                         for k, v in shot.items()}
 
 def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, sys_theta,
-                    origin_sigma, theta0_sigma, origin_shared: float = 0.0) -> dict:
+                    origin_sigma, theta0_sigma, origin_shared: float = 0.0,
+                    origin_row_sigma=None) -> dict:
     """Per-row sigma_xy / sigma_theta whose random part is scaled on the video itself.
 
     ``pix_xy`` (N,; m per coordinate) and ``pix_theta`` (rad) are the rows' pixel-noise
@@ -104,8 +105,9 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     in t, per interlaced field, knots at the stops).  ``sigma_xy`` is then the hypot of
     that random part, the slowly varying part the scatter cannot see
     (:data:`SIGMA_SLOW_RATIO` x the shot's median random variance), the origin (the
-    white part of its fit's value at t = 0, from the calibrated rows; ``origin_sigma``
-    when given: a late first frame's extrapolation), ``sys_xy`` (parallax, the fields'
+    white part of its fit's value at t = 0, from the calibrated rows, weighted as the
+    fit by ``origin_row_sigma`` (N,) when given; ``origin_sigma`` when given: a late
+    first frame's extrapolation), ``sys_xy`` (parallax, the fields'
     offset, the lattice's local misfit at the rock: what its correction leaves) and
     ``origin_shared`` (m: the error the origin's first rows share,
     :func:`~.shotframe.origin_check`; not counted where a row is judged against the
@@ -130,7 +132,8 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
         idx = np.flatnonzero(ok & np.isfinite(xy).all(axis=1))
         if origin_sigma is None:
             # the origin: shotframe.initial_state's fit to the first rows
-            m, p0 = origin_weights(t[idx])
+            m, p0 = origin_weights(t[idx], None if origin_row_sigma is None
+                                   else row_weights(np.asarray(origin_row_sigma)[idx]))
             first = idx[:m]
             origin_sigma = float(np.sqrt(np.sum(p0 ** 2 * fast[first] ** 2)))
         slow2 = SIGMA_SLOW_RATIO * float(np.median(fast[idx])) ** 2
@@ -586,9 +589,6 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         half = np.where(fld == 0, 0.5, np.where(fld == 1, -0.5, 0.0))[:, None]
         pull_xy = field_offset_along(t, centre, fld, ok)
         centre = centre + half * pull_xy
-    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
-                         angle_rows=uncertain_cell & np.isfinite(phi),
-                         field=fld if (fld >= 0).any() else None)
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
     lever = _layout_lever(rig)
@@ -599,6 +599,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sigma_xy = np.hypot(est.k * np.sqrt((SIGMA_STAT_SCALE ** 2 * (sig_m ** 2 / M + sig_g ** 2))
                                         + (SIGMA_MISFIT_SCALE * sig_r) ** 2 + sig_misfit ** 2),
                         sigma_parallax)
+    # (the origin's fit weighs each row by its own sigma)
+    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
+                         angle_rows=uncertain_cell & np.isfinite(phi),
+                         field=fld if (fld >= 0).any() else None, sigma=sigma_xy)
     if shot["origin_sigma_m"] > st.max_origin_sigma_m:
         how = (f"the first measured frame is at t = {t[ok][0]:.2f} s and the origin (the "
                "rock at t = 0) cannot be extrapolated back to it" if shot["origin_extrapolated"]
@@ -658,7 +662,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
             # late rows under a 0.9 mm sigma)
             idx_ok = np.flatnonzero(ok & np.isfinite(off_xy))
             if idx_ok.size >= 2:
-                m_w, p0 = origin_weights(t[idx_ok])
+                m_w, p0 = origin_weights(t[idx_ok], row_weights(sigma_own[idx_ok]))
                 first = idx_ok[:m_w]
                 origin_pull = abs(float(p0 @ off_xy[first]))
                 origin_shared = float(np.hypot(origin_shared, origin_pull))
@@ -762,7 +766,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         # what the warning above says sigma_xy includes)
         origin_sigma=(shot["origin_sigma_m"]
                       if shot["origin_extrapolated"] or origin_doubtful else None),
-        theta0_sigma=shot["theta0_sigma_rad"])
+        theta0_sigma=shot["theta0_sigma_rad"], origin_row_sigma=sigma_own)
     if np.isfinite(cal["scale_xy"]):
         data["sigma_xy"] = np.where(ok, cal["sigma_xy"], np.nan)
     if np.isfinite(cal["scale_theta"]):

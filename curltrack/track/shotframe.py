@@ -174,12 +174,47 @@ def window_rows(t, window_s: float = WINDOW_S, min_points: int = 8) -> tuple[int
     return n, (2 if n >= 6 else (1 if n >= 2 else 0))
 
 
-def origin_weights(t) -> tuple[int, np.ndarray]:
+#: A row weighs at most this many times the window's median row in the origin's fit
+#: (:func:`row_weights`): a sigma estimated too small must not let one row place it.
+MAX_ROW_WEIGHT = 4.0
+
+
+def row_weights(sigma) -> np.ndarray | None:
+    """Least-squares weights 1 / sigma^2 of rows whose own 1 sigma is ``sigma`` (any
+    unit), normalised to a median of 1 and capped at :data:`MAX_ROW_WEIGHT`; a row
+    without a finite, positive sigma weighs as the median.  None for no sigmas.
+
+    The origin is a fit to the first rows: a row whose own fit is far less sure than
+    its neighbours' (a doubtful grid, a half-hidden marker) must not move it as much
+    (a hand-held clip measured in 9 of 90 frames, ``test_wrong_cell`` seed 61122235:
+    two rows 7-20 mm off the others under own sigmas ~8x theirs bent the unweighted
+    quadratic, and every row was 13 mm off).
+    """
+    if sigma is None:
+        return None
+    s = np.asarray(sigma, float)
+    good = np.isfinite(s) & (s > 0)
+    if not good.any():
+        return None
+    w = np.ones(s.shape)
+    w[good] = 1.0 / s[good] ** 2
+    w[good] /= float(np.median(w[good]))
+    return np.minimum(w, MAX_ROW_WEIGHT)
+
+
+def _intercept_weights(A: np.ndarray, sw: np.ndarray) -> np.ndarray:
+    """p0 with the weighted least-squares fit's value at t = 0 = ``p0 @ q`` (rows of the
+    design ``A``, square-root weights ``sw``)."""
+    return np.linalg.pinv(A * sw[:, None])[0] * sw
+
+
+def origin_weights(t, weights=None) -> tuple[int, np.ndarray]:
     """(m, p0): :func:`initial_state`'s fit takes its value at t = 0 as ``p0 @ q[:m]``
-    of the first ``m`` rows at times ``t`` (before its robust pass) - how an error
-    of those rows reaches the origin."""
+    of the first ``m`` rows at times ``t`` (before its robust pass; ``weights`` as
+    :func:`to_shot_frame`'s) - how an error of those rows reaches the origin."""
     m, deg = window_rows(t)
-    return m, np.linalg.pinv(np.vander(t[:m], deg + 1, increasing=True))[0]
+    sw = np.ones(m) if weights is None else np.sqrt(np.asarray(weights, float)[:m])
+    return m, _intercept_weights(np.vander(t[:m], deg + 1, increasing=True), sw)
 
 
 def _first_late(t) -> bool:
@@ -201,33 +236,36 @@ def _angle_window(coef) -> float:
     return float(np.clip(ANGLE_WINDOW_STOP_FRACTION * t_stop, WINDOW_S, ANGLE_WINDOW_S))
 
 
-def _window_fit(t, q, window_s: float = WINDOW_S, min_points: int = 8):
+def _window_fit(t, q, window_s: float = WINDOW_S, min_points: int = 8, weights=None):
     """The polynomial fit of :func:`initial_state` to the first ``window_s`` seconds.
 
-    A quadratic (a straight line / a constant with too few rows) by least squares, with
-    one robust pass: rows more than 3 robust sigmas off the first fit in any column are
-    dropped and the fit is made again on the rest.
+    A quadratic (a straight line / a constant with too few rows) by least squares -
+    weighted by ``weights`` (N,) when given (:func:`row_weights`) - with one robust
+    pass: rows more than 3 robust sigmas off the first fit in any column (residuals
+    scaled by the square-root weights) are dropped and the fit is made again on the rest.
 
     Returns
     -------
-    (deg, A, coef, res)
+    (deg, A, coef, res, sw)
         The degree, the design (rows kept, columns 1, t, t^2 up to ``deg``), the
-        coefficients (deg + 1, k) and the kept rows' residuals (rows, k); ``t``, ``q``
-        as in :func:`initial_state`.
+        coefficients (deg + 1, k), the kept rows' residuals (rows, k) and their
+        square-root weights (rows,; ones unweighted); ``t``, ``q`` as in
+        :func:`initial_state`.
     """
     q = np.asarray(q, float).reshape(len(t), -1)
     n, deg = window_rows(t, window_s, min_points)
     A = np.vander(t[:n], deg + 1, increasing=True)
     qq = q[:n]
-    coef, *_ = np.linalg.lstsq(A, qq, rcond=None)
+    sw = np.ones(n) if weights is None else np.sqrt(np.asarray(weights, float)[:n])
+    coef, *_ = np.linalg.lstsq(A * sw[:, None], qq * sw[:, None], rcond=None)
     if n > deg + 4:
-        res = qq - A @ coef
-        mad = robust_sigma(res, axis=0)
-        keep = np.all(np.abs(res) <= 3 * np.maximum(mad, 1e-12), axis=1)
+        z = (qq - A @ coef) * sw[:, None]
+        mad = robust_sigma(z, axis=0)
+        keep = np.all(np.abs(z) <= 3 * np.maximum(mad, 1e-12), axis=1)
         if keep.sum() > deg + 2:
-            A, qq = A[keep], qq[keep]
-            coef, *_ = np.linalg.lstsq(A, qq, rcond=None)
-    return deg, A, coef, qq - A @ coef
+            A, qq, sw = A[keep], qq[keep], sw[keep]
+            coef, *_ = np.linalg.lstsq(A * sw[:, None], qq * sw[:, None], rcond=None)
+    return deg, A, coef, qq - A @ coef, sw
 
 
 def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = WINDOW_S, min_points: int = 8):
@@ -244,13 +282,14 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = WINDOW_S, min_
     -------
     (q0, rate0) : arrays of shape (k,)
     """
-    deg, _, coef, _ = _window_fit(t, q, window_s, min_points)
+    deg, _, coef, _, _ = _window_fit(t, q, window_s, min_points)
     return coef[0], (coef[1] if deg >= 1 else np.zeros_like(coef[0]))
 
 
 def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
                   window_s: float = WINDOW_S, min_points: int = 8, min_scatter=MIN_SCATTER_M,
-                  min_cubic=EXTRAPOLATION_M_S3, noise=None, extrapolated=True) -> float:
+                  min_cubic=EXTRAPOLATION_M_S3, noise=None, extrapolated=True,
+                  weights=None) -> float:
     """1 sigma (m; per coordinate) of the value at t = 0 of :func:`initial_state`'s fit.
 
     The fit's own variance plus, when the first frame is after t = 0
@@ -269,13 +308,13 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
     instead, the intercept's variance under that AR(1) frame noise (of the whole
     series; optionally ``(sigma, rho, step_s)``: rho per ``step_s`` seconds, e.g. one
     interlaced field's step, twice the rows').  Floor: ``min_scatter`` (m or rad) as
-    white noise.
+    white noise.  ``weights``: the fit's row weights (:func:`row_weights`).
     """
     q = np.asarray(q, float).reshape(len(t), -1)
-    deg, A, coef, res = _window_fit(t, q, window_s, min_points)
+    deg, A, coef, res, sw = _window_fit(t, q, window_s, min_points, weights)
     if deg == 0:
         return float("inf")
-    p0 = np.linalg.pinv(A)[0]
+    p0 = _intercept_weights(A, sw)
     floor = min_scatter * float(np.sqrt(p0 @ p0))
     if noise is not None:
         # frames' errors that persist (blur, exposure, the lattice's fit): the
@@ -289,7 +328,8 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
         # (the bench's 640x360 hand-held clip: frames 1-3 read 6 mm across the rink off
         # the rest, the quadratic bent to them and every row was 3.7 mm off; a common
         # white scatter said 0.8 mm, the sandwich says 2.1)
-        h = np.einsum("ij,ji->i", A, np.linalg.pinv(A))
+        Aw = A * sw[:, None]
+        h = np.einsum("ij,ji->i", Aw, np.linalg.pinv(Aw))
         u = res / np.maximum(1.0 - h, 1e-3)[:, None] if A.shape[0] > A.shape[1] else 0 * res
         stat = float(np.sqrt(np.mean(np.sum(p0[:, None] ** 2 * u ** 2, axis=0))))
     stat = max(stat, floor)
@@ -329,7 +369,7 @@ ORIGIN_CHECK_CHI2 = 10.6
 
 
 def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
-                 windows=ORIGIN_CHECK_WINDOWS) -> dict:
+                 windows=ORIGIN_CHECK_WINDOWS, weights=None) -> dict:
     """The origin's error that its own fit cannot see: its first rows against the rest.
 
     The first rows of a shot are measured as no others are: the camera starts to
@@ -361,6 +401,9 @@ def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
         The path's smallest cubic coefficient assumed (m/s^3), as :func:`_origin_sigma`.
     windows : sequence of (start, span)
         The check's windows (s after the first row, s).
+    weights : (N,) array, optional
+        Both fits' row weights (:func:`row_weights`; the rows' scatter is then read in
+        units of a row of weight 1).
 
     Returns
     -------
@@ -375,7 +418,8 @@ def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
     out = {"sigma": 0.0, "difference": 0.0, "chi2": float("nan")}
     if len(t) < 16:
         return out
-    deg1, A1, coef1, res1 = _window_fit(t, q)
+    w_all = np.ones(len(t)) if weights is None else np.asarray(weights, float)
+    deg1, A1, coef1, res1, sw1 = _window_fit(t, q, weights=weights)
     if deg1 < 2:
         return out
     v, a = coef1[1], 2.0 * coef1[2]
@@ -383,7 +427,7 @@ def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
     accel = float(np.linalg.norm(a))
     decel = -float(np.sum(a * v)) / speed
     t_stop = speed / decel if decel > 0 else np.inf
-    p1 = np.linalg.pinv(A1)[0]
+    p1 = _intercept_weights(A1, sw1)
     cubic1 = max(min_cubic, MAX_ABS_PHI * accel ** 2 / speed / 6.0)
     for from_s, span_s in windows:
         start = t[0] + from_s
@@ -397,8 +441,9 @@ def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
         a_end = accel * speed / u_end
         quartic = 3.0 * MAX_ABS_PHI * a_end ** 3 / u_end ** 2 / 24.0
         A2 = np.vander(t[sel], 4, increasing=True)
-        coef2, *_ = np.linalg.lstsq(A2, q[sel], rcond=None)
-        p2 = np.linalg.pinv(A2)[0]
+        sw2 = np.sqrt(w_all[sel])
+        coef2, *_ = np.linalg.lstsq(A2 * sw2[:, None], q[sel] * sw2[:, None], rcond=None)
+        p2 = _intercept_weights(A2, sw2)
         # each fit's value at t = 0 is a weighted sum of its rows: the difference's
         # variance from the weights of both on the rows' union (they share some), under
         # the rows' AR(1) noise - its scale the residuals' mean square, not a robust
@@ -411,8 +456,14 @@ def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
         w = np.zeros(times.size)
         w[np.searchsorted(times, A1[:, 1])] += p1
         w[np.searchsorted(times, A2[:, 1])] -= p2
-        res2 = q[sel] - A2 @ coef2
-        res = np.vstack([res1, res2])
+        # (in units of a row of weight 1: a row's error is its residual times its
+        # square-root weight, and it enters the values as w / sqrt(weight))
+        sw_u = np.ones(times.size)
+        sw_u[np.searchsorted(times, A1[:, 1])] = sw1
+        sw_u[np.searchsorted(times, A2[:, 1])] = sw2
+        w = w / sw_u
+        res2 = (q[sel] - A2 @ coef2) * sw2[:, None]
+        res = np.vstack([res1 * sw1[:, None], res2])
         # (+ 4 / rows: a fitted cubic's residuals read a correlation about that low;
         # the fits take (1 + rho) / (1 - rho) times their parameters' share of the
         # residuals' variance when the rows' errors persist)
@@ -494,7 +545,8 @@ def choose_axes(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.ndarray,
                   up_direction: np.ndarray | None = None,
                   settings: TrackingSettings | None = None,
-                  angle_rows: np.ndarray | None = None, field: np.ndarray | None = None) -> dict:
+                  angle_rows: np.ndarray | None = None, field: np.ndarray | None = None,
+                  sigma: np.ndarray | None = None) -> dict:
     """Convert lattice-frame centres and angles into the shot frame.
 
     Parameters
@@ -518,6 +570,9 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     field : (N,) int array, optional
         Interlaced video: each row's field (0/1; -1 for none); theta0's noise is then
         estimated field by field (:func:`_frame_noise`).
+    sigma : (N,) array, optional
+        Each row's own 1 sigma of position (m; any scale): the origin's fit weighs the
+        rows by it (:func:`row_weights`; default: alike).
 
     Returns
     -------
@@ -531,7 +586,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
         (bool), ``origin_check_sigma_m`` and ``origin_check_difference_m``: the error
         its first rows share, which its fit cannot see (m per coordinate; 0 when the
         later rows agree) and the two values' distance (m; :func:`origin_check`),
-        ``theta0_sigma_rad``: theta0's (rad, likewise).
+        ``theta0_sigma_rad``: theta0's (rad, likewise), ``origin_row_weights``: the
+        weights of the measured (``ok``) rows in the origin's fit (None: alike).
     """
     st = TrackingSettings() if settings is None else settings
     min_travel = st.min_travel_m
@@ -548,7 +604,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
             aidx, th_all, sure_all = more, th_more, sure_more
     at_ok = np.searchsorted(aidx, idx)
     th, th_sure = th_all[at_ok], sure_all[at_ok]
-    deg, _, coef, _ = _window_fit(tt, cc)
+    weights = None if sigma is None else row_weights(np.asarray(sigma, float)[idx])
+    deg, _, coef, _, _ = _window_fit(tt, cc, weights=weights)
     (x0, y0), (vx, vy) = coef[0], (coef[1] if deg >= 1 else np.zeros(2))
     # theta0 over its own window (_angle_window); angles after a gap whose turns are
     # not counted may be a whole turn off: theta0 from the frames before it alone when
@@ -578,9 +635,10 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     theta[idx] = np.where(th_sure, th - th0, np.nan)
     late = _first_late(tt)
     # the origin is a fit even when the first frame is at t = 0: its error is every row's
-    origin_sigma = _origin_sigma(tt, cc, st.max_deceleration_m_s2, extrapolated=late)
+    origin_sigma = _origin_sigma(tt, cc, st.max_deceleration_m_s2, extrapolated=late,
+                                 weights=weights)
     # ... and what its first rows share, which its fit cannot see
-    check = origin_check(tt, cc)
+    check = origin_check(tt, cc, weights=weights)
     # every angle is taken from theta0, itself a fit: its error is every row's (the
     # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
     # under a 0.9 deg sigma)
@@ -594,4 +652,4 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
             "origin_check_sigma_m": check["sigma"],
             "origin_check_difference_m": check["difference"],
             "theta_unsure": np.isin(np.arange(t.size), idx[~th_sure]),
-            "theta0_sigma_rad": float(theta0_sigma)}
+            "theta0_sigma_rad": float(theta0_sigma), "origin_row_weights": weights}
