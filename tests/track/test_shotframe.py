@@ -214,13 +214,15 @@ def test_the_origin_weighs_each_row_by_its_own_sigma():
     assert 0.8 < rz < 1.25, f"seed {seed}: weighted origin error / sigma RMS {rz:.2f}"
 
 
-def test_row_weights_are_relative_and_capped():
-    from curltrack.track.shotframe import MAX_ROW_WEIGHT, row_weights
+def test_row_weights_only_take_weight_off_doubtful_rows():
+    from curltrack.track.shotframe import FULL_WEIGHT_SIGMA_RATIO, row_weights
 
-    w = row_weights(np.array([1.0, 1.0, 1.0, 2.0, 0.1, np.nan, 0.0]))
-    assert w[0] == 1.0 and w[3] == 0.25, w
-    assert w[4] == MAX_ROW_WEIGHT  # (a sigma 10x smaller than the median's: capped)
-    assert w[5] == 1.0 and w[6] == 1.0  # (no sigma: as the median row)
+    r = FULL_WEIGHT_SIGMA_RATIO
+    # (lower quartile of the sigmas: 1)
+    w = row_weights(np.array([1.0, 1.0, 1.0, 1.0, 0.9 * r, 2 * r, 0.1, np.nan, 0.0]))
+    assert np.array_equal(w[[0, 1, 2, 3, 4, 6]], np.ones(6)), w  # (none weighs more than 1)
+    assert w[5] == 0.25, w  # (twice the full weight's sigma: a quarter)
+    assert w[7] == 1.0 and w[8] == 1.0  # (no sigma: as the others)
     assert row_weights(None) is None and row_weights(np.full(3, np.nan)) is None
 
 
