@@ -26,6 +26,8 @@ direction of travel    within :data:`MAX_SKEW_DEG` the rink's or an image's fram
                        of +y                       shot frame (+y along the initial velocity)
 curl against the spin  never (a warning)           x mirrored (an image's axes, y down) or
                                                    theta clockwise
+speed                  never rises (beyond its     t = 0 before the release (a rock at rest,
+                       noise, :data:`MIN_SPEEDUP`)  or still pushed, in the first rows)
 =====================  ==========================  ==========================================
 
 A delivery leaves the hand at 1-4.5 m/s (a hard take-out) and turns at 0.2-4 rad/s (a
@@ -41,8 +43,8 @@ import numpy as np
 
 from .errors import SeriesError
 
-__all__ = ["check_units", "late_stop_warning", "bound_rows", "MAX_DURATION_S", "MAX_T_S",
-           "MAX_SPEED", "MAX_SPIN", "DISCOVER_MAX_ROWS"]
+__all__ = ["check_units", "late_stop_warning", "bound_rows", "speed_rise", "MAX_DURATION_S",
+           "MAX_T_S", "MAX_SPEED", "MAX_SPIN", "DISCOVER_MAX_ROWS"]
 
 #: Longest series taken as one shot (s): a slow draw lasts ~35 s.
 MAX_DURATION_S = 120.0
@@ -89,6 +91,150 @@ DIRECTION_SHARE = 0.15
 CURL_MIN_M = 0.1
 CURL_MIN_SHARE = 0.02
 CURL_MIN_TURN_RAD = 1.5
+#: A rock sliding freely only slows: its speed, measured over windows of this length
+#: (s, lines through at least :data:`SPEEDUP_MIN_ROWS` rows; long enough that an
+#: instrument's 15 cm step moves a window's speed by ~0.15 m/s) ...
+SPEEDUP_WINDOW_S = 1.0
+SPEEDUP_MIN_ROWS = 4
+#: ... must not rise from one of the first :data:`SPEEDUP_FIRST_WINDOWS` windows (a
+#: video begun before the release is slow there) to a later one by more than this
+#: (m/s) and :data:`SPEEDUP_Z` times the two windows' combined 1 sigma: each window's
+#: own (its line's residuals) and the series' (the windows' speeds about a smooth
+#: decline, from their second differences: an instrument's steps of 5-10 cm move a
+#: window's speed by up to ~0.5 m/s, which no window's residuals show).  A video begun
+#: before the release rises by the delivery's speed (1-4.5 m/s) from a rock at rest,
+#: by ~1 m/s from one still pushed.
+MIN_SPEEDUP = 0.3
+SPEEDUP_Z = 5.0
+SPEEDUP_FIRST_WINDOWS = 3
+#: A rise from a start that is not far slower than the speed reached is only taken
+#: when it ends within this time (s) of the first row: a rock still pushed is fastest
+#: at the release, and a window further on that reads faster is an instrument's step
+#: (10 cm steps: windows 10 s on read 1.3-2 m/s faster than the first, 5 in 200 draws).
+SPEEDUP_SPAN_S = 3.0
+#: ``check_units`` refuses a series whose speed rises and starts (over its first
+#: :data:`RELEASE_WINDOW_S`) under this share of the speed it reaches (a rock at rest,
+#: or far slower, at the start: nothing else does that); another rise is a warning (an instrument's 10 cm steps, 2x the
+#: steps class's scale, raised speeds from 2.5 to 2.9 and 1.6 to 2.4 m/s once in ~70
+#: draws each).
+CLEAR_RISE_SHARE = 0.5
+#: ... and the short windows (:data:`RELEASE_WINDOW_S`) are looked at only for a start
+#: under this share of the speed reached: a rock at rest (a short rest before a slow
+#: delivery, which the long windows blur).
+REST_SHARE = 0.2
+#: The release is placed where the speed over windows of this length (s) first comes
+#: within :data:`RELEASE_SHARE` of the risen speed (a hint: where t = 0 belongs).
+RELEASE_WINDOW_S = 0.3
+RELEASE_SHARE = 0.9
+
+
+def _window_speeds(t, xy, window_s: float):
+    """(centre times, speeds, 1 sigma of the speeds) of lines through the rows of
+    windows ``window_s`` long, half a window apart (windows with fewer than
+    :data:`SPEEDUP_MIN_ROWS` rows left out)."""
+    out = []
+    for start in np.arange(t[0], t[-1] - 0.5 * window_s + 1e-9, 0.5 * window_s):
+        sel = (t >= start) & (t < start + window_s)
+        n = int(np.count_nonzero(sel))
+        if n < SPEEDUP_MIN_ROWS:
+            continue
+        tc = t[sel] - t[sel].mean()
+        sxx = float(tc @ tc)
+        if sxx <= 0:
+            continue
+        q = xy[sel] - xy[sel].mean(axis=0)
+        v = tc @ q / sxx                       # (2,) the line's velocity
+        res = q - np.outer(tc, v)
+        s2 = float(np.sum(res ** 2)) / max(2 * (n - 2), 1)
+        out.append((float(t[sel].mean()), float(np.hypot(*v)), float(np.sqrt(s2 / sxx))))
+    return np.array(out).reshape(-1, 3).T
+
+
+def _rise(t, xy, window_s: float, clear: float):
+    """(k, j, tc, u) of the largest rise beyond noise of the speed over windows
+    ``window_s`` long from one of the first :data:`SPEEDUP_FIRST_WINDOWS` (k) to a
+    later one (j), or None; ``clear`` (> 0): only a rise from under that share of the
+    speed reached, else (0) only one that ends within :data:`SPEEDUP_SPAN_S` of the
+    first row (a rock pushed up to the release is fastest there)."""
+    tc, u, su = _window_speeds(t, xy, window_s)
+    if tc.size < 2:
+        return None
+    # (second differences of every other window's speed: windows that do not overlap)
+    d2 = np.diff(u[::2], 2)
+    if d2.size >= 3:
+        # (their upper quartile, not their median: an instrument's steps move a
+        # third of the windows or more; a rock at rest then released, one or two)
+        series_sigma = float(np.percentile(np.abs(d2 - np.median(d2)), 75)) / 1.15 / np.sqrt(6.0)
+        su = np.hypot(su, series_sigma)
+    rise = u[None, :] - u[:, None]                        # [k, j]: u_j - u_k
+    bar = np.maximum(MIN_SPEEDUP, SPEEDUP_Z * np.hypot(su[:, None], su[None, :]))
+    later = np.triu(np.ones(rise.shape, bool), 1)
+    later[SPEEDUP_FIRST_WINDOWS:] = False
+    if clear:
+        later &= u[:, None] < clear * u[None, :]
+    else:
+        later &= (tc <= t[0] + SPEEDUP_SPAN_S)[None, :]
+    excess = np.where(later & (rise > bar), rise, -np.inf)
+    if not np.isfinite(excess).any():
+        return None
+    k, j = np.unravel_index(int(np.argmax(excess)), excess.shape)
+    return int(k), int(j), tc, u
+
+
+def speed_rise(t, xy) -> dict | None:
+    """The largest rise of a rock's speed from one of its first windows of rows to a
+    later one, when it is beyond noise: a rock sliding freely only slows, so a series
+    whose speed rises from its start begins before the release (the rock at rest, or
+    still pushed).  Windows of :data:`SPEEDUP_WINDOW_S` (steps of an instrument barely
+    move them), then of :data:`RELEASE_WINDOW_S` for a rise from under
+    :data:`CLEAR_RISE_SHARE` of the speed reached (a short rest before a slow delivery).
+
+    Parameters
+    ----------
+    t : (N,) array
+        Times of the measured rows (s), increasing.
+    xy : (N, 2) array
+        Their positions (m), in any frame fixed to the ice.
+
+    Returns
+    -------
+    dict or None
+        ``t_from``, ``u_from``, ``t_to``, ``u_to`` (s, m/s: the two windows' centres and
+        speeds), ``u_start`` (m/s: the speed over the first :data:`RELEASE_WINDOW_S`
+        window) and ``t_release`` (s: where the speed over :data:`RELEASE_WINDOW_S`
+        first comes within :data:`RELEASE_SHARE` of ``u_to``, less half that window);
+        None when the speed never rises by more than :data:`MIN_SPEEDUP` and
+        :data:`SPEEDUP_Z` sigma.  (Windows of at least :data:`SPEEDUP_MIN_ROWS` rows:
+        0.3 s is 3 rows at 10 Hz.)
+    """
+    t = np.asarray(t, float)
+    xy = np.asarray(xy, float).reshape(len(t), 2)
+    good = np.isfinite(t) & np.isfinite(xy).all(axis=1)
+    t, xy = t[good], xy[good]
+    if t.size < 2 * SPEEDUP_MIN_ROWS:
+        return None
+    w_fine = max(RELEASE_WINDOW_S, (SPEEDUP_MIN_ROWS + 0.5) * float(np.median(np.diff(t))))
+    # (the short windows only for a rock at rest at first (under REST_SHARE of the
+    # speed reached): an instrument's steps move them by more than their second
+    # differences show - 7-9 % of step-noise draws rose there by 0.5 m/s from a moving
+    # start, and a 5 cm step read a rock's first 0.3 s at 1.0 m/s, a later 0.3 s at 2.1)
+    # (a clear rise also starts slow over the first short window: a 30 cm step of an
+    # instrument read a moving rock's first 1 s window at 0.15 m/s, not its first 0.3 s)
+    tf, uf, _ = _window_speeds(t, xy, w_fine)
+    u_start = float(uf[0]) if uf.size else np.inf
+    for window_s, clear in ((SPEEDUP_WINDOW_S, CLEAR_RISE_SHARE), (w_fine, REST_SHARE),
+                            (SPEEDUP_WINDOW_S, 0.0)):
+        found = _rise(t, xy, window_s, clear)
+        if found is not None and (not clear or u_start < clear * found[3][found[1]]):
+            break
+    else:
+        return None
+    k, j, tc, u = found
+    reach = np.flatnonzero((tf > tc[k]) & (uf >= RELEASE_SHARE * u[j]))
+    t_rel = (float(tf[reach[0]]) - 0.5 * w_fine) if reach.size else float(tc[j])
+    return {"t_from": float(tc[k]), "u_from": float(u[k]), "t_to": float(tc[j]),
+            "u_to": float(u[j]), "t_release": max(t_rel, float(t[0])),
+            "u_start": u_start if uf.size else float(u[0])}
 
 
 def late_stop_warning(t_stop, name: str) -> list[str]:
@@ -176,6 +322,18 @@ def check_units(series) -> list[str]:
         fail("t", f"the rock moves at {speed:.3g} m/s at t = {t.min():.5g} s, later than any "
                   f"shot after its release (<= {MAX_MOVING_T_S:g} s): t looks offset - it "
                   f"counts from the release; subtract the release time")
+    after = t >= 0   # (rows before t = 0 are not used: said above)
+    rise = speed_rise(t[after], xy[after])
+    if rise is not None:
+        row = int(d.index[min(int(np.searchsorted(t, rise["t_release"])), t.size - 1)]) + 2
+        said = (f"the rock speeds up from {rise['u_from']:.2f} m/s at t = "
+                f"{rise['t_from']:.2f} s to {rise['u_to']:.2f} m/s at t = {rise['t_to']:.2f} "
+                f"s, and a rock sliding freely only slows: the series begins before the "
+                f"release (t = 0 is the release; here about t = {rise['t_release']:.2f} s, "
+                f"row {row}: subtract it from t, or drop the rows before it)")
+        if rise["u_start"] < CLEAR_RISE_SHARE * rise["u_to"]:
+            fail("t", said)
+        warnings.append(f"t: {said}, or an instrument's errors jump by tens of cm")
     u, travel = _initial_direction(xy)
     if travel >= 0.5:   # (a pure rotation, or too short to say)
         _check_direction(xy, u, fail)   # (after the units: x alone in mm turns it too)

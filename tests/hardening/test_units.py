@@ -268,3 +268,65 @@ def test_a_turn_across_a_gap_is_not_taken_for_a_wrap(seed):
     assert check_units(gapped) == [], what
     with pytest.raises(Exception, match="wrapped"):
         check_units(_wrong(gapped, "wrapped"))
+
+
+def _prepend_rest(s: Series, rest_s: float, rate: float, rng) -> tuple[pd.DataFrame, float]:
+    """``s`` with ``rest_s`` of the rock at rest (its noise continued) before the
+    release, t counted from the first row; returns (data, release time)."""
+    d = s.measured[["t", "x", "y", "theta"]].copy()
+    tp = np.arange(-rest_s, 0.0, 1.0 / rate)
+    noise = float(np.std(np.diff(d["x"].to_numpy()[:20]))) / np.sqrt(2.0)
+    pre = pd.DataFrame({"t": tp, "x": rng.normal(0.0, noise, tp.size),
+                        "y": rng.normal(0.0, noise, tp.size), "theta": 0.0})
+    out = pd.concat([pre, d], ignore_index=True)
+    out["t"] -= tp[0]
+    out.insert(0, "frame", np.arange(len(out)))
+    out["ok"] = 1
+    return out, -float(tp[0])
+
+
+def test_a_series_begun_before_the_release_is_refused(seed):
+    """A series whose rock rests for 0.3-3 s before it is delivered (an instrument, or
+    a video, started early; rows at 10-60 Hz, every noise class at its typical scale
+    but steps): t = 0 is not the release, so every t, the origin and v0 would be wrong
+    - a one-line error naming t, with the release placed within 0.2 s."""
+    from curltrack.errors import SeriesError
+    from curltrack.instrument import TYPICAL_SCALE
+    from curltrack.sanity import speed_rise
+
+    rng = np.random.default_rng(seed)
+    for i in range(12):
+        kind = str(rng.choice(["white", "ar1", "heavy", "vibration", "quantised"]))
+        rate = float(rng.choice([10, 25, 30, 50, 60]))
+        s = simulate_series(ShotModel(v0=rng.uniform(0.8, 4.0),
+                                      omega0=rng.choice([-1, 1]) * rng.uniform(0.3, 3.0)),
+                            fps=rate, noise_m=TYPICAL_SCALE[kind][0],
+                            noise_rad=TYPICAL_SCALE[kind][1], noise_class=kind,
+                            seed=int(rng.integers(2**31)))
+        d, t_release = _prepend_rest(s, float(rng.uniform(0.3, 3.0)), rate, rng)
+        with pytest.raises(SeriesError, match="before the release") as err:
+            check_units(Series(d, {}))
+        assert "column 't'" in str(err.value), (seed, i, str(err.value))
+        rise = speed_rise(d["t"].to_numpy(), d[["x", "y"]].to_numpy())
+        assert abs(rise["t_release"] - t_release) <= 0.2, (seed, i, kind, rate, t_release, rise)
+
+
+def test_no_noise_class_reads_as_a_rock_that_speeds_up(seed):
+    """Clean shots sampled as other instruments sample them (10-60 Hz, jitter, a gap, a
+    first row up to 1 s after release) under every noise class at its typical scale -
+    steps of 3-15 cm included: the speed never reads as rising, nothing is said of it."""
+    from curltrack.instrument import ALL_NOISE_CLASSES, TYPICAL_SCALE, Sampling
+
+    rng = np.random.default_rng(seed)
+    for i in range(60):
+        kind = ALL_NOISE_CLASSES[i % len(ALL_NOISE_CLASSES)]
+        rate = float(rng.choice([10, 25, 30, 50, 60]))
+        samp = Sampling(rate_hz=rate, jitter_s=rng.uniform(0, 0.2) / rate,
+                        start_s=float(rng.choice([0.0, rng.uniform(0, 1)])),
+                        n_gaps=int(rng.integers(0, 2)))
+        s = simulate_series(ShotModel(v0=rng.uniform(0.8, 4.5),
+                                      omega0=rng.choice([-1, 1]) * rng.uniform(0.2, 4.0)),
+                            noise_m=TYPICAL_SCALE[kind][0], noise_rad=TYPICAL_SCALE[kind][1],
+                            noise_class=kind, sampling=samp, seed=int(rng.integers(2**31)))
+        said = [w for w in check_units(s) if "speeds up" in w]
+        assert said == [], (seed, i, kind, rate, said)

@@ -212,3 +212,35 @@ def test_hidden_rock_predicted_as_it_moves_and_no_bigger():
     c = p1.mean(axis=0)
     assert not fol._remember(2, c + (p1 - c) * LAYOUT_JUMP * 1.05), f"seed {seed}"
     assert [f for f, _ in fol.hist] == [0, 1]
+
+
+def test_a_video_begun_before_the_release_is_refused_with_its_release_frame(tmp_path):
+    """A video that starts with the rock at rest (0.5-1.5 s) before it is delivered: t
+    and the origin would count from the wrong instant - a one-line error that asks for
+    --start-frame and names the release frame (within 0.2 s)."""
+    import re
+
+    from curltrack.render import RenderConfig, render_video
+    from curltrack.track import track_video
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    rig = default_rig()
+    sim = simulate_series(ShotModel(v0=rng.uniform(1.5, 2.5), omega0=rng.uniform(-2, 2)),
+                          fps=30)
+    n_rest = int(rng.integers(15, 46))
+    moving = sim.data.iloc[:45]
+    rest = moving.iloc[[0] * n_rest].assign(t=np.arange(n_rest) / 30.0)
+    data = pd.concat([rest, moving.assign(t=moving["t"] + n_rest / 30.0)], ignore_index=True)
+    data["frame"] = np.arange(len(data))
+    sim = type(sim)(data, {k: v for k, v in sim.meta.items()
+                           if not k.startswith(("t_stop", "stop_frame"))})
+    video = tmp_path / "early.mp4"
+    render_video(sim, rig, video, tmp_path / "early_truth.csv",
+                 config=RenderConfig(width=640, height=360), seed=int(rng.integers(1 << 30)))
+    with pytest.raises(TrackingError, match="before the release") as err:
+        track_video(video, rig)
+    msg = str(err.value)
+    found = re.search(r"about frame (\d+)", msg)
+    assert found and "--start-frame" in msg, (seed, msg)
+    assert abs(int(found.group(1)) - n_rest) <= 6, (seed, n_rest, msg)
