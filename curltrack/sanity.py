@@ -60,6 +60,12 @@ MIN_UNIT_SPEED = 0.25
 #: Length units a series' x, y may be in by mistake, and their size in metres.
 LENGTH_UNITS = {"centimetres": 0.01, "millimetres": 0.001, "feet": 0.3048,
                 "inches": 0.0254}
+#: Time units finer than the second a series' t may be in by mistake, and their size
+#: in its unit (how many make a second).
+FINE_TIME_UNITS = {"milliseconds": 1e3, "microseconds": 1e6, "nanoseconds": 1e9}
+#: ... and coarser ones, named when they bring both the speed and the spin into range
+#: (t in minutes makes every rate 60x too fast - once read as theta in degrees).
+COARSE_TIME_UNITS = {"minutes": 60.0, "hours": 3600.0, "days (a spreadsheet's time)": 86400.0}
 #: Longest plausible travel (m): a sheet is 45.72 m from back board to back board.
 MAX_TRAVEL_M = 46.0
 #: Latest time (s) at which a rock can still move after its release (a slow draw
@@ -284,21 +290,38 @@ def check_units(series) -> list[str]:
                         f"used: t counts from the release, and the rock in the hand is not "
                         f"the shot")
     span = float(t.max() - t.min())
-    if t.max() > MAX_T_S:
+    # (a span of one shot in a finer unit counted from ~0 is that unit, not a clock:
+    # microseconds were once called a clock time)
+    fine = next(((unit, size) for unit, size in FINE_TIME_UNITS.items()
+                 if 1.0 <= span / size <= MAX_DURATION_S and t.min() / size <= MAX_MOVING_T_S),
+                None)
+    if t.max() > MAX_T_S and fine is None:
         fail("t", f"values up to {t.max():.4g} look like a clock time (e.g. seconds since "
                   "1970), not seconds since the release: subtract the first time")
     if span > MAX_DURATION_S:
-        if 1.0 <= span / 1000.0 <= MAX_DURATION_S:
-            fail("t", f"the series spans {span:.5g} 'seconds' — t looks like milliseconds "
-                      f"({span / 1000:.3g} s if divided by 1000): the contract's t is in s")
+        if fine is not None:
+            unit, size = fine
+            fail("t", f"the series spans {span:.5g} 'seconds' — t looks like {unit} "
+                      f"({span / size:.3g} s if divided by {size:g}): the contract's t is in s")
         fail("t", f"the series spans {span:.5g} s, more than one shot "
                   f"(<= {MAX_DURATION_S:g} s): split the recording into shots")
     lag = _lag(t)
     has_theta = np.isfinite(d["theta"].to_numpy(float))
-    if has_theta.sum() >= 3:  # (position-only series have no theta)
-        _check_theta(d[has_theta], fail, warnings)
     xy = d[["x", "y"]].to_numpy(float)
     speed = _rate(t, xy, lag)
+    if speed > MAX_SPEED:
+        th = d["theta"].to_numpy(float)[has_theta]
+        for unit, size in COARSE_TIME_UNITS.items():
+            ts = t * size   # (rates over RATE_WINDOW_S of the unit's seconds)
+            speed_s = _rate(ts, xy, _lag(ts))
+            spin_s = _rate(ts[has_theta], th[:, None], _lag(ts[has_theta])) if th.size >= 3 else 0.0
+            if (MIN_UNIT_SPEED <= speed_s <= MAX_SPEED and spin_s <= MAX_SPIN
+                    and span * size <= MAX_DURATION_S):
+                fail("t", f"the rock would move at {speed:.4g} m/s for {span:.4g} 's' — t "
+                          f"looks like {unit} ({speed_s:.3g} m/s for {span * size:.3g} s if "
+                          f"multiplied by {size:g}): the contract's t is in s")
+    if has_theta.sum() >= 3:  # (position-only series have no theta)
+        _check_theta(d[has_theta], fail, warnings)
     reach = float(np.percentile(np.hypot(*(xy - xy[0]).T), 90))   # (robust to a wild row)
     # (a file in centimetres was once called millimetres, at 0.18 m/s "if divided by
     # 1000", and one in feet was fitted as a 92 m draw: only a unit that gives a rock's

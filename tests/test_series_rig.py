@@ -127,6 +127,21 @@ def test_ok_written_as_true_false_is_read(tmp_path):
     assert read_series(p).data["ok"].tolist() == [1, 0, 1]
 
 
+def test_missing_values_as_numpy_r_or_a_database_write_them_are_empty(tmp_path):
+    """'nan' (numpy.savetxt, MATLAB), 'NA' (R), 'null'/'None' (a database), 'N/A': read as
+    an empty cell - theta position-only, x a row not measured; a word is still refused."""
+    from curltrack.errors import SeriesError
+
+    p = _csv(tmp_path, "frame,t,x,y,theta,ok\n0,0,0,0,nan,1\n1,0.1,0,0.2,NA,1\n"
+                       "2,0.2,NaN,0.4,null,1\n3,0.3,0,0.6,None,1\n4,0.4,0,0.8,N/A,1\n")
+    s = read_series(p)
+    assert s.data["theta"].isna().all() and not s.theta_measured
+    assert s.data["ok"].tolist() == [1, 1, 0, 1, 1]
+    p.write_text("frame,t,x,y,theta,ok\n0,0,0,0,0,1\n1,0.1,0,0.2,missing,1\n")
+    with pytest.raises(SeriesError, match="non-numeric value 'missing'"):
+        read_series(p)
+
+
 def test_infinite_theta_is_not_a_position_only_row(tmp_path):
     p = _csv(tmp_path, "frame,t,x,y,theta,ok\n0,0,0,0,0,1\n1,0.03,0,0,inf,1\n2,0.06,0,0,,1\n")
     s = read_series(p)

@@ -82,6 +82,11 @@ class Series:
         return str(self.path) if self.path else "<series>"
 
 
+#: Cell values read as empty (case-insensitive): numpy's and MATLAB's "nan", R's "NA",
+#: a database's "null"/"None", "N/A".
+MISSING_SPELLINGS = ("nan", "na", "n/a", "null", "none")
+
+
 def _is_datetime(value) -> bool:
     import warnings
 
@@ -194,6 +199,10 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
             if col == "ok" and out[col].dtype != float:   # (True/False, as pandas writes)
                 out[col] = out[col].map(lambda v: {"true": 1, "false": 0}.get(
                     str(v).strip().lower(), v))
+            # (the spellings of a missing value that numpy, R, MATLAB and databases
+            # write read as empty, as pandas' own empty cell)
+            text = out[col].astype(str).str.strip()
+            out[col] = out[col].where(~text.str.lower().isin(MISSING_SPELLINGS), np.nan)
             num = pd.to_numeric(out[col], errors="coerce")
             bad = num.isna() & out[col].notna() & (out[col].astype(str).str.strip() != "")
             if bad.any():

@@ -44,6 +44,12 @@ def _wrong(s: Series, mistake: str) -> Series:
         d["theta"] = np.angle(np.exp(1j * d["theta"]))
     elif mistake == "epoch":
         d["t"] += 1.7e9
+    elif mistake == "minutes":
+        d["t"] /= 60.0
+    elif mistake == "microseconds":
+        d["t"] *= 1e6
+    elif mistake == "days":   # a spreadsheet's time of day
+        d["t"] /= 86400.0
     elif mistake == "rink_frame":   # the rink's axes: turned 30-330 deg, origin elsewhere
         rng = np.random.default_rng(len(d))
         _turn(d, float(rng.uniform(30, 330)), rng.uniform(-20, 20, 2))
@@ -55,6 +61,8 @@ CASES = {"degrees": ("theta", "degrees"), "mm": ("x/y", "millimetres"),
          "cm": ("x/y", "centimetres"), "offset": ("'t'", "offset"),
          "ms": ("'t'", "milliseconds"), "wrapped": ("theta", "wrapped"),
          "wrapped_pm_pi": ("theta", "wrapped"), "epoch": ("'t'", "clock time"),
+         "minutes": ("'t'", "minutes"), "microseconds": ("'t'", "microseconds"),
+         "days": ("'t'", "days"),
          "rink_frame": ("x/y", "shot frame")}
 
 
