@@ -95,6 +95,17 @@ def _refuse(records, ok, shot, mask, why):
     return ok & ~mask, {k: (np.where(mask, np.nan, v) if k in ("x", "y", "theta") else v)
                         for k, v in shot.items()}
 
+def _unmeasure(data, ok, mask, frame, warnings, why: str):
+    """Rows ``mask`` of the written table made ``ok`` = 0 (their values emptied) and
+    ``why`` (a format string for their frames) said; returns ``ok`` without them."""
+    if not mask.any():
+        return ok
+    data.loc[mask, ["x", "y", "theta", "sigma_xy", "sigma_theta", "quality"]] = np.nan
+    data.loc[mask, "ok"] = 0
+    warnings.append(why.format(frame_ranges(frame[mask])))
+    return ok & ~mask
+
+
 def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, sys_theta,
                     origin_sigma, theta0_sigma, origin_shared: float = 0.0,
                     origin_row_sigma=None) -> dict:
@@ -855,26 +866,19 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # its own sigma_xy is a wrong measurement that sigma does not describe: refused (CI
     # seed 1744272862: a lattice walked ~5 px off under a broom while the markers were
     # hidden, the first frame they were found again 14.7 mm off under 1.1 mm, 13 sigma)
-    off = np.asarray(cal["off_path"], bool) & ok
-    if off.any():
-        ok = ok & ~off
-        data.loc[off, ["x", "y", "theta", "sigma_xy", "sigma_theta", "quality"]] = np.nan
-        data.loc[off, "ok"] = 0
-        warnings.append(f"{path}: frame(s) {frame_ranges(frame[off])}: off the rock's "
-                        f"smooth path through the other rows by more than {PATH_CLIP:g} "
-                        "times sigma_xy (a lattice or marker error) (ok = 0)")
+    ok = _unmeasure(data, ok, np.asarray(cal["off_path"], bool) & ok, frame, warnings,
+                    f"{path}: frame(s) {{}}: off the rock's smooth path through the other "
+                    f"rows by more than {PATH_CLIP:g} times sigma_xy (a lattice or marker "
+                    "error) (ok = 0)")
     # ... and a row of one field that the other field's path misses so (the fields of
     # a frame exposed 1/60 s apart disagree where the rock crosses a still image fast)
     if (fld >= 0).any():
         split = fields_disagree(t, data[["x", "y"]].to_numpy(float), fld, ok,
                                 data["sigma_xy"].to_numpy(float))
-        if split.any():
-            ok = ok & ~split
-            data.loc[split, ["x", "y", "theta", "sigma_xy", "sigma_theta", "quality"]] = np.nan
-            data.loc[split, "ok"] = 0
-            warnings.append(f"{path}: frame(s) {frame_ranges(frame[split])}: the other "
-                            f"field's rows miss this field's by more than {PATH_CLIP:g} "
-                            "times sigma_xy (the two fields of a frame disagree) (ok = 0)")
+        ok = _unmeasure(data, ok, split, frame, warnings,
+                        f"{path}: frame(s) {{}}: the other field's rows miss this field's by "
+                        f"more than {PATH_CLIP:g} times sigma_xy (the two fields of a frame "
+                        "disagree) (ok = 0)")
     for note in stops.notes:
         warnings.append(f"stops: {note}")
     cam_h = est.height_m - depth_eff if np.isfinite(est.height_m) else None
