@@ -339,6 +339,7 @@ def fit_translation(t, x, y, t_stop, fixed_stop=False, free_lambda=False, sigma=
     res = _minimize(resid, p, name, path)
     mx, my = _xy_model(res.params, tt)
     res.raw_residual = np.concatenate([mx - xx, my - yy])   # m: x rows, then y rows
+    res.row_sigma = np.concatenate([s_x, s_y])               # the rows' weights (m or 1)
     return res
 
 
@@ -456,17 +457,20 @@ def fit_series(series: Series, rig: Rig | None = None, fixed_stop: bool = False)
         s_x, s_y = (_noise_rows(d, "sigma_xy", c, t, q, t_tr, path)
                     for c, q in (("x", x), ("y", y)))
         s_xy = (None, None) if s_x is None or s_y is None else (np.maximum(s_x, s_y),) * 2
-        tied = fit_translation(t, x, y, t_tr, fixed_stop, False, s_xy, path, warnings)
-        tied = _honest_errors(tied, s_xy, [t, t], "translation", "x, y", path, warnings,
-                              hint=None if has_theta.any() else _curl_end_hint)
         omega = _nominal(u["omega0"]) if u.get("omega0") is not None else None
-        tied = _approximation_error(tied, t, t_tr, fixed_stop, False, omega, path)
+        tied = fit_translation(t, x, y, t_tr, fixed_stop, False, s_xy, path, warnings)
+        exact = _closed_form_refit(tied, t, t_tr, fixed_stop, False, omega, path)
+        tied = _honest_errors(tied, s_xy, [t, t], "translation", "x, y", path, warnings,
+                              hint=None if has_theta.any() else _curl_end_hint,
+                              expected=_expected_residual(tied, exact))
+        tied = _approximation_error(tied, exact)
         fits["xy"] = tied
         try:
             free = fit_translation(t, x, y, t_tr, fixed_stop, True, s_xy, path, warnings,
                                    start=_values(tied.params))
             free = _honest_errors(free, s_xy, [t, t], None, "x, y", path, [])
-            free = _approximation_error(free, t, t_tr, fixed_stop, True, omega, path)
+            free = _approximation_error(
+                free, _closed_form_refit(free, t, t_tr, fixed_stop, True, omega, path))
             fits["xy_free"] = free
         except FitError as exc:  # a secondary fit: its keys are null, the rest stands
             free = None
@@ -618,7 +622,8 @@ def small_sample_factor(n: int, p: int, tau: float) -> float:
     return float(absorbed * student)
 
 
-def _honest_errors(res, sigma, times, label, coords, path, warnings, hint=None):
+def _honest_errors(res, sigma, times, label, coords, path, warnings, hint=None,
+                   expected=None):
     """Scale a fit's covariance for residuals that are correlated (n / tau effective
     points, :func:`small_sample_factor`) and warn when the fit is a misfit against the
     measured noise.
@@ -627,7 +632,9 @@ def _honest_errors(res, sigma, times, label, coords, path, warnings, hint=None):
     scatter, not the assumed noise); correlated residuals (a misfit, or an instrument
     whose errors persist) carry fewer independent points than rows, which this adds.
     ``hint(chunks)`` -> str: a likely cause, from the residuals per coordinate, for the
-    misfit warning ("" when none).
+    misfit warning ("" when none).  ``expected`` (m, as ``res.raw_residual``): the
+    residuals the closed forms leave on the model's own path at the fitted parameters
+    (:func:`_expected_residual`); the misfit is what the data leave beyond them.
     """
     chunks = np.array_split(res.residual, len(times))  # one block per coordinate
     tau = max(correlation_time(c) for c in chunks)
@@ -638,7 +645,16 @@ def _honest_errors(res, sigma, times, label, coords, path, warnings, hint=None):
         res.uvars = res.params.create_uvars(covar=res.covar)
         for name, uv in res.uvars.items():
             res.params[name].stderr = uv.std_dev
-    redchi = float(np.mean(res.residual ** 2))
+    if expected is not None:
+        # (a noise-free simulated draw: 0.08 mm of small-angle x left by the closed
+        # forms on the model's own path read 300x its numerical "noise", a misfit).
+        # What is left beyond them is read against the noise and their own size: the
+        # refit's parameters are not quite the data's, so a rest well under the closed
+        # forms' own error is theirs too (noise-free draws: 6-13x the noise without it)
+        scale = np.hypot(res.row_sigma, _rms(expected))
+        chunks = np.array_split((res.raw_residual - expected) / scale, len(times))
+        tau = max(correlation_time(c) for c in chunks)
+    redchi = float(np.mean(np.concatenate(chunks) ** 2))
     if label and redchi > MISFIT_REDCHI and tau > MISFIT_TAU:
         dt = float(np.median(np.diff(times[0]))) if len(times[0]) > 1 else 0.0
         warnings.append(
@@ -653,23 +669,14 @@ def _honest_errors(res, sigma, times, label, coords, path, warnings, hint=None):
     return res
 
 
-def _approximation_error(res, t, t_stop, fixed_stop, free_lambda, omega0, path):
-    """Add to a translation fit's errors what the paper's closed forms themselves miss.
+def _closed_form_refit(res, t, t_stop, fixed_stop, free_lambda, omega0, path):
+    """The translation fit ``res`` made again on the paper's model's own path at its
+    fitted parameters (:func:`curltrack.physics.simulate`, exact heading, the series'
+    times, no noise): what the closed forms miss of the model they approximate.
 
-    The paper's x(t) is small-angle: a transverse acceleration a_T along x.  A rock's
-    a_T is perpendicular to its velocity, which the curl turns (most near the stop), and
-    the fit of the closed forms to such a path comes out biased: |a_T| 0.13 % low on a
-    30 m draw curling 0.9 m - noise-free, or 5 of its 1-sigma at 1 mm noise, from this
-    simulator and from an independent one alike.  The bias is measured at the fitted
-    parameters: the paper's model (:func:`curltrack.physics.simulate`, exact heading) is
-    run at the series' times and fitted as the data were; each parameter's difference
-    from the values simulated (lambda_x: the model's, lambda_y - the free fit read
-    1.846 for 1.840, 3-19 sigma at 0.5-1 mm noise) is added to ``res.uvars`` as one shared error (its parts
-    are one bias, fully correlated), so derived quantities carry it too.  Nothing is
-    added where the simulation or the refit fails (the misfit warnings then speak).
+    Returns ``(refit, simulated)`` - the refit and the parameter values simulated - or
+    None where the simulation or the refit fails (the misfit warnings then speak).
     """
-    from uncertainties import ufloat
-
     from .physics import ShotModel, simulate
 
     v = {k: q.value for k, q in res.params.items()}
@@ -685,9 +692,39 @@ def _approximation_error(res, t, t_stop, fixed_stop, free_lambda, omega0, path):
         again = fit_translation(t, sim.x, sim.y, t_stop, fixed_stop, free_lambda, None,
                                 path, [], start=v)
     except Exception:  # noqa: BLE001 - no bias estimate; the fit's own errors stand
-        return res
+        return None
     # (the model's curl decelerates with the slide: its lambda_x is lambda_y)
-    simulated = {**v, "lambda_x": v["lambda_y"]} if free_lambda else v
+    return again, ({**v, "lambda_x": v["lambda_y"]} if free_lambda else v)
+
+
+def _expected_residual(res, exact):
+    """The residuals (m, as ``res.raw_residual``) that the closed forms leave on the
+    model's own path (``exact``, :func:`_closed_form_refit`); None without one."""
+    if exact is None or exact[0].raw_residual.shape != res.raw_residual.shape:
+        return None
+    return exact[0].raw_residual
+
+
+def _approximation_error(res, exact):
+    """Add to a translation fit's errors what the paper's closed forms themselves miss.
+
+    The paper's x(t) is small-angle: a transverse acceleration a_T along x.  A rock's
+    a_T is perpendicular to its velocity, which the curl turns (most near the stop), and
+    the fit of the closed forms to such a path comes out biased: |a_T| 0.13 % low on a
+    30 m draw curling 0.9 m - noise-free, or 5 of its 1-sigma at 1 mm noise, from this
+    simulator and from an independent one alike.  The bias is measured at the fitted
+    parameters (``exact``, :func:`_closed_form_refit`: the paper's model run at the
+    series' times and fitted as the data were); each parameter's difference from the
+    values simulated (lambda_x: the model's, lambda_y - the free fit read 1.846 for
+    1.840, 3-19 sigma at 0.5-1 mm noise) is added to ``res.uvars`` as one shared error
+    (its parts are one bias, fully correlated), so derived quantities carry it too.
+    Nothing is added without ``exact``.
+    """
+    from uncertainties import ufloat
+
+    if exact is None:
+        return res
+    again, simulated = exact
     z = ufloat(0.0, 1.0, tag="closed-form approximation")
     for k, uv in list(res.uvars.items()):
         if k in again.params and res.params[k].vary:

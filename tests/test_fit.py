@@ -315,6 +315,28 @@ def test_misfit_is_warned_and_errors_scaled():
     assert clean.extra["error_inflation_xy"] < 1.5, seed
 
 
+def test_noise_free_draws_are_no_misfit_but_a_noise_free_effect_is():
+    """What the closed forms miss of the model they approximate (the small-angle x,
+    ~0.1 mm) is no misfit, even where the noise is nil (a noise-free draw of
+    ``simulate`` read 300x its numerical noise before); a friction patch in the same
+    noise-free draw still is."""
+    from curltrack.physics import Effect, ShotModel
+    from curltrack.simulate import simulate_series
+
+    seed = _entropy()
+    rng = np.random.default_rng(seed)
+    m = ShotModel(v0=rng.uniform(1.6, 2.4), omega0=rng.choice([-1, 1]) * rng.uniform(0.5, 2.5),
+                  phi_y=rng.uniform(-0.4, 0.0))
+    clean = fit_series(simulate_series(m, seed=seed))
+    assert clean.values["rms_x"] < 1e-3, seed   # the closed forms' own residual: tiny
+    assert not any("misfit" in w for w in clean.warnings), (seed, clean.warnings)
+    a = rng.uniform(4.0, 8.0)
+    patch = fit_series(simulate_series(
+        m, [Effect("friction_patch", {"y_start_m": a, "y_end_m": a + 3, "factor": 1.3})],
+        seed=seed))
+    assert any("misfit" in w for w in patch.warnings), (seed, patch.warnings)
+
+
 def test_plot_curves_in_the_points_frame(monkeypatch, tmp_path):
     """A 3-5 degree off-line throw with a lambda-free curl: the lambda-free curve of the
     x panel lies on its points (that fit has its own deskew angle)."""
