@@ -156,13 +156,14 @@ def _window_speeds(t, xy, window_s: float):
     return np.array(out).reshape(-1, 3).T
 
 
-def _rise(t, xy, window_s: float, clear: float):
-    """(k, j, tc, u) of the largest rise beyond noise of the speed over windows
-    ``window_s`` long from one of the first :data:`SPEEDUP_FIRST_WINDOWS` (k) to a
-    later one (j), or None; ``clear`` (> 0): only a rise from under that share of the
-    speed reached, else (0) only one that ends within :data:`SPEEDUP_SPAN_S` of the
-    first row (a rock pushed up to the release is fastest there)."""
-    tc, u, su = _window_speeds(t, xy, window_s)
+def _rise(t0: float, windows, clear: float):
+    """(k, j, tc, u) of the largest rise beyond noise of the speed over ``windows``
+    (:func:`_window_speeds`' centres, speeds and their sigmas) from one of the first
+    :data:`SPEEDUP_FIRST_WINDOWS` (k) to a later one (j), or None; ``clear`` (> 0): only
+    a rise from under that share of the speed reached, else (0) only one that ends
+    within :data:`SPEEDUP_SPAN_S` of the first row, at ``t0`` (a rock pushed up to the
+    release is fastest there)."""
+    tc, u, su = windows
     if tc.size < 2:
         return None
     # (second differences of every other window's speed: windows that do not overlap)
@@ -179,7 +180,7 @@ def _rise(t, xy, window_s: float, clear: float):
     if clear:
         later &= u[:, None] < clear * u[None, :]
     else:
-        later &= (tc <= t[0] + SPEEDUP_SPAN_S)[None, :]
+        later &= (tc <= t0 + SPEEDUP_SPAN_S)[None, :]
     excess = np.where(later & (rise > bar), rise, -np.inf)
     if not np.isfinite(excess).any():
         return None
@@ -226,11 +227,12 @@ def speed_rise(t, xy) -> dict | None:
     # start, and a 5 cm step read a rock's first 0.3 s at 1.0 m/s, a later 0.3 s at 2.1)
     # (a clear rise also starts slow over the first short window: a 30 cm step of an
     # instrument read a moving rock's first 1 s window at 0.15 m/s, not its first 0.3 s)
-    tf, uf, _ = _window_speeds(t, xy, w_fine)
+    windows = {w: _window_speeds(t, xy, w) for w in (SPEEDUP_WINDOW_S, w_fine)}
+    tf, uf, _ = windows[w_fine]
     u_start = float(uf[0]) if uf.size else np.inf
     for window_s, clear in ((SPEEDUP_WINDOW_S, CLEAR_RISE_SHARE), (w_fine, REST_SHARE),
                             (SPEEDUP_WINDOW_S, 0.0)):
-        found = _rise(t, xy, window_s, clear)
+        found = _rise(float(t[0]), windows[window_s], clear)
         if found is not None and (not clear or u_start < clear * found[3][found[1]]):
             break
     else:

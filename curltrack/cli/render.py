@@ -115,8 +115,10 @@ def render(
                                          "lost the flags)."),
     field_colour: str = typer.Option("shared", "--field-colour", help="--scan interlaced, "
                                      "flagged: 'shared' 4:2:0 colour converted from the "
-                                     "woven frame (a transcode) or each field's 'own' (a "
-                                     "camera's original file)."),
+                                     "woven frame (a transcode, each colour row the mean "
+                                     "of both fields'), 'top' (the top field's lines "
+                                     "alone) or each field's 'own' (a camera's original "
+                                     "file)."),
     shadow: float = typer.Option(0.0, "--shadow", help="Depth (0-0.9) of a person's soft "
                                  "shadow walking beside the rock; 0 = none."),
     glare: float = typer.Option(10.0, "--glare", help="Peak level (0-255) of the lamps' "

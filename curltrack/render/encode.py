@@ -16,6 +16,8 @@ from .sensor import TIME_BASE
 
 FOURCC = "mp4v"  # the H.264 encoders are absent from the opencv-python wheels
 CODECS = {"mp4v": None, "mpeg4": "mpeg4", "h264": "libx264", "hevc": "libx265"}
+#: How a flagged interlaced stream's 4:2:0 colour was made (:class:`EncodingConfig`)
+FIELD_COLOURS = ("shared", "own", "top")
 #: The same frames must give the same file (a rendered clip is a test's input: the
 #: tracker's numbers on it must not change from one run to the next).  libx264's
 #: macroblock tree reads memory it never wrote when the frame is not a multiple of
@@ -54,12 +56,14 @@ class EncodingConfig:
         field order (default; PyAV codecs).  False writes the woven frames as progressive
         video, as a re-encoding that dropped the flags does (its 4:2:0 colour then
         mixes the two fields).
-    field_colour : {"shared", "own"}
+    field_colour : {"shared", "own", "top"}
         A flagged interlaced stream's 4:2:0 colour: ``"shared"`` (default) converted from
         the woven frame as if progressive, each colour row the mean of a line of each
         field - what FFmpeg's default transcode of camcorder footage writes (DV's 4:1:1
         to H.264, the issue's footage); ``"own"`` subsampled per field and sited as
-        interlaced 4:2:0 is (:func:`interlaced_i420`) - a camera's original file.
+        interlaced 4:2:0 is (:func:`interlaced_i420`) - a camera's original file;
+        ``"top"`` shared too, but point-sampled from the top field's lines
+        (:func:`top_field_colour_i420`) - a converter that drops lines.
     """
 
     codec: str = "mp4v"
@@ -80,9 +84,9 @@ class EncodingConfig:
         if self.rotation_deg not in (0, 90, 180, 270):
             raise ParameterError("rotation must be 0, 90, 180 or 270 deg",
                                  where="render.encoding.rotation_deg")
-        if self.field_colour not in ("shared", "own"):
-            raise ParameterError(f"field colour {self.field_colour!r}: expected 'shared' or "
-                                 "'own'", where="render.encoding.field_colour")
+        if self.field_colour not in FIELD_COLOURS:
+            raise ParameterError(f"field colour {self.field_colour!r}: expected one of "
+                                 f"{', '.join(FIELD_COLOURS)}", where="render.encoding.field_colour")
         if self.codec == "mp4v" and (self.bitrate_bps or self.rotation_deg):
             raise ParameterError("a bitrate or rotation tag needs a PyAV codec (mpeg4, "
                                  "h264, hevc), not OpenCV's mp4v", where="render.encoding")
@@ -148,6 +152,23 @@ def interlaced_i420(img: np.ndarray) -> np.ndarray:
     return out
 
 
+def top_field_colour_i420(img: np.ndarray) -> np.ndarray:
+    """A woven BGR frame (uint8, even height) as progressive 4:2:0 whose colour rows are
+    the top field's lines alone (point-sampled, as OpenCV's and some editors' converters
+    subsample): the bottom field is shown in the top field's colour, its exposure's -
+    its markers a whole field's travel behind where its luma has them."""
+    import av
+
+    def i420(a):
+        return av.VideoFrame.from_ndarray(np.ascontiguousarray(a), format="bgr24") \
+            .reformat(format="yuv420p").to_ndarray()
+
+    h = img.shape[0]
+    out = i420(img)
+    out[h:] = i420(np.repeat(img[0::2], 2, axis=0))[h:]
+    return out
+
+
 class _AvWriter:
     def __init__(self, path, fps, size, enc: EncodingConfig, field_order=None,
                  pixel_aspect=1.0):
@@ -188,11 +209,13 @@ class _AvWriter:
         if enc.rotation_deg:
             s.set_display_rotation(float(enc.rotation_deg))
         self.s, self.av = s, av
-        self.own_field_colour = field_order is not None and enc.field_colour == "own"
+        self.field_colour = enc.field_colour if field_order is not None else "shared"
 
     def write(self, img, t):
-        if self.own_field_colour and img.shape[0] % 4 == 0 and img.shape[1] % 2 == 0:
+        if self.field_colour == "own" and img.shape[0] % 4 == 0 and img.shape[1] % 2 == 0:
             f = self.av.VideoFrame.from_ndarray(interlaced_i420(img), format="yuv420p")
+        elif self.field_colour == "top" and img.shape[0] % 2 == 0 and img.shape[1] % 2 == 0:
+            f = self.av.VideoFrame.from_ndarray(top_field_colour_i420(img), format="yuv420p")
         else:
             f = self.av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="bgr24")
         f.pts = int(round(t * TIME_BASE))
