@@ -100,7 +100,6 @@ class FrameRecord:
     contrast: float = np.nan
     segment: int = 0  # the grid's cell-index segment (GridPose.segment)
     outline_m: float = np.nan  # radius of the rock's outline (m, lattice; track.outline)
-    outline_centre_m: np.ndarray | None = None  # its centre (lattice m; luma, this exposure)
     mirrored: bool = False  # the markers are the rig layout's mirror image (parallax)
     notes: list = dc_field(default_factory=list)
     clicked: bool = False  # measured from a corrections file's clicks
@@ -641,8 +640,8 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         mpp = read_lattice_at_rock(rec, pose, calib, L, q, ice, c)
         rec.centre_app, rec.phi, rec.scale = c, phi, s
         if fr.index % outline_every == 0:  # the scale's second ruler
-            rec.outline_m, rec.outline_centre_m = outline_radius(
-                img, pose.H, calib.K, calib.dist, c, rig.rock_diameter_m / 2)
+            rec.outline_m = outline_radius(img, pose.H, calib.K, calib.dist, c,
+                                           rig.rock_diameter_m / 2)[0]
         rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
         if fr.field is not None:
             rec.sigma_m *= FIELD_SIGMA_FACTOR
