@@ -156,8 +156,8 @@ def test_path_step_measures_a_whole_cell_jump():
 def test_a_segment_whose_rows_scatter_is_not_placed():
     """A short segment before a gap whose rows scatter by centimetres about the path
     (a lattice that was not right, not one off by whole cells) stays unresolved, however
-    close its mean lies to a whole cell; the same rows with the reference's noise are
-    placed."""
+    close its mean lies to a whole cell; the same rows with the reference's noise, or
+    3-4 times it (still a small part of a cell), are placed."""
     seed = int(np.random.SeedSequence().entropy % (1 << 32))
     rng = np.random.default_rng(seed)
     sim = simulate_series(ShotModel(v0=rng.uniform(1.5, 3.0), omega0=rng.uniform(0.5, 2.5)),
@@ -175,6 +175,13 @@ def test_a_segment_whose_rows_scatter_is_not_placed():
     clean[:n_seg] += cells
     shift, unresolved, _ = resolve_segments(t, clean, seg, ok, s)
     assert not unresolved.any() and np.allclose(shift[:n_seg], -cells), f"seed {seed}"
+    # rows noisier than the reference's but a small part of a cell (a hand-held clip's
+    # side after a loss: 2.2 mm against 1.1 mm) are a right lattice: placed
+    noisy = clean.copy()
+    noisy[:n_seg] += rng.normal(0, rng.uniform(3.0, 4.0) * noise, (n_seg, 2))
+    shift, unresolved, _ = resolve_segments(t, noisy, seg, ok, s)
+    assert not unresolved.any() and np.allclose(shift[:n_seg], -cells), \
+        f"seed {seed}: noisier rows not placed"
     wild = clean.copy()
     wild[:n_seg] += rng.normal(0, rng.uniform(0.02, 0.05), (n_seg, 2))
     wild[:n_seg] -= wild[:n_seg].mean(axis=0) - clean[:n_seg].mean(axis=0)  # mean kept
