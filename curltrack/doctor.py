@@ -53,7 +53,8 @@ class Check:
     ----------
     name : str
         ``video``, ``fps``, ``length``, ``decode``, ``markers``, ``grid``, ``rock_size``,
-        ``camera_height``, ``grid_scale``, ``camera_turn``.
+        ``camera_height``, ``grid_scale``, ``camera_turn``, ``release`` (the video
+        begins before the release: the rock speeds up over its first frames).
     status : str
         ``"ok"``, ``"warn"`` or ``"fail"`` (fatal: ``track`` cannot succeed).
     detail : str
@@ -238,10 +239,11 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES, frames=None,
     found = {}
     try:
         judged = sorted(set(idx.tolist()) | set(nxt))
+        problems: list = []
         with progress_bar("doctor: track's loop", judged[-1] + 1 if judged else 0,
                           enabled=progress) as advance:
             verdicts = check_frames(video, judged, rig, fps_override=rig.fps,
-                                    progress=advance)
+                                    progress=advance, problems=problems)
         for verdict in verdicts:
             found[verdict.frame] = _sample(verdict, read(verdict.frame), rig, det)
     except CurltrackError as exc:
@@ -254,6 +256,9 @@ def diagnose(video, rig: Rig, n_samples: int = N_SAMPLES, frames=None,
     _geometry_checks(rep, rig, samples)
     _turn_check(rep, [(found[i - 1], found[i], i - 1) for i in nxt
                       if i - 1 in found and i in found], info.fps, rig.tracking)
+    for exc in problems:   # (the rock's speed over the frames run: track's own rule)
+        rep.checks.append(Check("release", "fail", exc.message,
+                                "give --start-frame at the release frame named here"))
     return rep
 
 

@@ -54,3 +54,9 @@ class FitError(CurltrackError):
 
 class TrackingError(CurltrackError):
     """The rock or grid could not be followed."""
+
+
+class StartFrameError(TrackingError):
+    """The video does not begin at the release: the rock speeds up from its first
+    frames (at rest, or still pushed), so t and the origin would count from the wrong
+    instant; the message names the release frame to give as ``--start-frame``."""

@@ -95,20 +95,25 @@ def frame_reader(path, n_frames: int | None = None, fps_override=None):
     return read
 
 
-def _series_rules(records, rig: Rig, video, video_info, loop_info) -> None:
+def _series_rules(records, rig: Rig, video, video_info, loop_info):
     """Give the records the reasons ``track`` finds only over the whole run (a marker
     layout or a sigma far from the video's others, a cell index the path does not fix):
     :func:`curltrack.track.results.build_series` sets them on the records it refuses.
     Its "others" are the frames run, up to the last one judged, where track's are the
-    whole video's.  (Its errors about the video as a whole are doctor's other checks'
-    to report.)"""
-    from ..errors import CurltrackError
+    whole video's.  Its errors about the video as a whole are doctor's other checks' to
+    report, but one: a video that begins before the release (no other check sees the
+    rock's speed) - that :class:`~curltrack.errors.StartFrameError` is returned (else
+    None)."""
+    from ..errors import CurltrackError, StartFrameError
     from .results import build_series
 
     try:
         build_series(records, rig, video_info, 0, loop_info, path=video)
+    except StartFrameError as exc:
+        return exc
     except CurltrackError:
         pass
+    return None
 
 
 def _verdict(rec, calib, calib_frame) -> FrameVerdict:
@@ -148,7 +153,7 @@ def _past(frames, end: int):
 
 
 def check_frames(video, frames, rig: Rig, fps_override=None,
-                 progress=None) -> list[FrameVerdict]:
+                 progress=None, problems: list | None = None) -> list[FrameVerdict]:
     """Judge frames as ``track`` does, by running its loop from the video's start to the
     last of them.
 
@@ -164,6 +169,10 @@ def check_frames(video, frames, rig: Rig, fps_override=None,
         The rig's ``[camera].fps``.
     progress : callable, optional
         Called with 1 per frame run over.
+    problems : list, optional
+        Appended to: what ``track`` would refuse the run for that no frame's verdict
+        says (a :class:`~curltrack.errors.StartFrameError`: the video begins before
+        the release).
 
     Returns
     -------
@@ -203,7 +212,9 @@ def check_frames(video, frames, rig: Rig, fps_override=None,
         records, info = track_frames(frames_run, rig, path=video, progress=progress,
                                      outline_every=1 << 30, strict=False)
         if video_info is not None:
-            _series_rules(records, rig, video, video_info, info)
+            late = _series_rules(records, rig, video, video_info, info)
+            if late is not None and problems is not None:
+                problems.append(late)
         for rec in records:
             # (an interlaced frame: its first field's verdict)
             if rec.frame in wanted and rec.frame not in out:

@@ -7,7 +7,7 @@ import pandas as pd
 
 from .. import __version__
 from .._stats import robust_sigma
-from ..errors import TrackingError
+from ..errors import StartFrameError, TrackingError
 from ..rig import Rig
 from ..series import Series, make_meta
 from .outline import scale_check, scale_check_resolution
@@ -156,6 +156,9 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
         # off their path by less than its sigma, which carries the slow errors too
         with np.errstate(invalid="ignore"):
             wrong = c["off_path"] & (c["miss"] > PATH_CLIP * sigma_xy)
+        # (and where a stretch of the shot scatters more than the shot, its rows' random
+        # part grows with it - never shrinks: a wrong row is judged as above)
+        sigma_xy = np.sqrt(sigma_xy ** 2 + np.maximum(c["local"] - 1.0, 0.0) * fast ** 2)
         out.update(scale_xy=c["scale"], n_wrong=int(c["clipped"]), off_path=wrong,
                    sigma_xy=np.hypot(sigma_xy, origin_shared))
     brt = [b for b in (stops.t_stop_rotation,) if b]
@@ -165,7 +168,8 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
         measured = ok & np.isfinite(theta)
         slow2 = THETA0_SLOW_RATIO * float(np.median(fast[measured])) ** 2 if measured.any() else 0.0
         out.update(scale_theta=c["scale"],
-                   sigma_theta=np.sqrt(fast ** 2 + theta0_sigma ** 2 + slow2
+                   sigma_theta=np.sqrt(np.maximum(c["local"], 1.0) * fast ** 2
+                                       + theta0_sigma ** 2 + slow2
                                        + np.asarray(sys_theta) ** 2))
     return out
 
@@ -762,7 +766,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     rise = speed_rise(t[ok], centre[ok])
     if rise is not None:
         k0 = int(np.flatnonzero(ok & (t >= rise["t_release"]))[0])
-        raise TrackingError(
+        raise StartFrameError(
             f"the rock speeds up from {rise['u_from']:.2f} m/s (t = {rise['t_from']:.2f} s) "
             f"to {rise['u_to']:.2f} m/s (t = {rise['t_to']:.2f} s), and a rock sliding freely "
             f"only slows: the video begins before the release (the rock at rest, or still "

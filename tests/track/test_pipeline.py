@@ -244,3 +244,10 @@ def test_a_video_begun_before_the_release_is_refused_with_its_release_frame(tmp_
     found = re.search(r"about frame (\d+)", msg)
     assert found and "--start-frame" in msg, (seed, msg)
     assert abs(int(found.group(1)) - n_rest) <= 6, (seed, n_rest, msg)
+    # doctor runs track's loop over the frames: it says so too, and is not "ready"
+    from curltrack.doctor import diagnose
+
+    report = diagnose(video, rig)
+    release = [c for c in report.checks if c.name == "release"]
+    assert not report.ok and release and release[0].status == "fail", (seed, report.format())
+    assert "--start-frame" in release[0].detail, (seed, release[0].detail)
