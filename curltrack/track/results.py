@@ -156,9 +156,6 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
         # off their path by less than its sigma, which carries the slow errors too
         with np.errstate(invalid="ignore"):
             wrong = c["off_path"] & (c["miss"] > PATH_CLIP * sigma_xy)
-        # (and where a stretch of the shot scatters more than the shot, its rows' random
-        # part grows with it - never shrinks: a wrong row is judged as above)
-        sigma_xy = np.sqrt(sigma_xy ** 2 + np.maximum(c["local"] - 1.0, 0.0) * fast ** 2)
         out.update(scale_xy=c["scale"], n_wrong=int(c["clipped"]), off_path=wrong,
                    sigma_xy=np.hypot(sigma_xy, origin_shared))
     brt = [b for b in (stops.t_stop_rotation,) if b]
@@ -168,8 +165,7 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
         measured = ok & np.isfinite(theta)
         slow2 = THETA0_SLOW_RATIO * float(np.median(fast[measured])) ** 2 if measured.any() else 0.0
         out.update(scale_theta=c["scale"],
-                   sigma_theta=np.sqrt(np.maximum(c["local"], 1.0) * fast ** 2
-                                       + theta0_sigma ** 2 + slow2
+                   sigma_theta=np.sqrt(fast ** 2 + theta0_sigma ** 2 + slow2
                                        + np.asarray(sys_theta) ** 2))
     return out
 

@@ -33,13 +33,6 @@ MIN_ROWS_PER_KNOT = 8
 CLIP = 5.0
 #: A gap (s) longer than this splits the rows into runs fitted separately.
 GAP_S = 0.25
-#: The window (s) over which the scatter is read again about each row (``local``): a
-#: stretch of a shot measured worse than the rest (an encoder's starved frames, blur, a
-#: broom) under the shot's one scale.
-LOCAL_S = 1.0
-#: The local reading's weight of the shot's scale, in degrees of freedom: a window
-#: of a few rows does not move it far from the shot's (at 30 fps the 1 s window's ~58).
-LOCAL_PRIOR_DOF = 20.0
 #: A run too short for its own spline (a frame or a few measured between refused ones)
 #: is checked against the path through the fitted rows within this time (s) of it on
 #: both sides, on the same side of any stop: a polynomial in t, whose own error at the
@@ -114,9 +107,7 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
         summed over columns), ``n`` (rows used), ``clipped`` (rows left out as wrong)
         and ``off_path`` ((N,) bool: those rows); ``miss`` ((N,) array, the units of
         ``q``): each used row's largest miss of the path over the columns (a left-out
-        row's: of the path through the others), NaN for rows not used; ``local`` ((N,)):
-        each row's variance about the path over :data:`LOCAL_S` around it in units of
-        the shot's (1 for rows not used; :func:`_local_ratio`).
+        row's: of the path through the others), NaN for rows not used.
     """
     t = np.asarray(t, float)
     q = np.asarray(q, float).reshape(len(t), -1)
@@ -125,10 +116,8 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
     runs = np.zeros(len(t), int) if runs is None else np.asarray(runs)
     off_path = np.zeros(len(t), bool)
     miss = np.full(len(t), np.nan)
-    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0, off_path=off_path, miss=miss,
-               local=np.ones(len(t)))
+    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0, off_path=off_path, miss=miss)
     num = den = 0.0
-    row_num, row_den = np.zeros(len(t)), np.zeros(len(t))   # kept rows' z^2, 1 - h
     n_used = clipped = 0
     fitted_rows = np.zeros(len(t), bool)
     spline_z = np.full(len(t), np.nan)
@@ -209,8 +198,6 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
             m = q.shape[1]
             num += float(np.sum(z[keep] ** 2))
             den += float(m * (np.sum(1 - h[keep])))
-            row_num[seg[keep]] = np.sum(z[keep] ** 2, axis=1)
-            row_den[seg[keep]] = m * (1 - h[keep])
             n_used += int(keep.sum())
             clipped += int((~keep & ~alone).sum())
             off_path[seg[~keep & ~alone]] = True
@@ -226,8 +213,7 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
                 spline_miss[seg[inside]] = np.abs(z[inside]).max(axis=1) * ss[inside]
     if den > 0:
         scale = float(np.sqrt(num / den))
-        out.update(scale=scale, dof=den, n=n_used, clipped=clipped,
-                   local=_local_ratio(t, runs, use, row_num, row_den, scale ** 2))
+        out.update(scale=scale, dof=den, n=n_used, clipped=clipped)
         for lab, seg in short:
             # (a lone row amid refused frames was never checked: a rendered hand-held
             # clip's frame 87, between 16 refused for their marker layout, 29 mm off
@@ -240,24 +226,6 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
             elif np.isfinite(spline_z[seg]).any():
                 miss[seg] = spline_miss[seg]
                 off_path[seg[spline_z[seg] > CLIP]] = True
-    return out
-
-
-def _local_ratio(t, runs, use, row_num, row_den, scale2: float) -> np.ndarray:
-    """Each used row's variance about the path over :data:`LOCAL_S` around it (its
-    run's kept rows: sum z^2 / sum (1 - h)) over the shot's ``scale2``, read with
-    :data:`LOCAL_PRIOR_DOF` degrees of freedom of the shot's own; 1 for rows not used."""
-    out = np.ones(len(t))
-    for lab in np.unique(runs[use]):
-        rows = np.flatnonzero(use & (runs == lab))
-        rows = rows[np.argsort(t[rows])]
-        tr = t[rows]
-        cn = np.r_[0.0, np.cumsum(row_num[rows])]
-        cd = np.r_[0.0, np.cumsum(row_den[rows])]
-        lo = np.searchsorted(tr, tr - 0.5 * LOCAL_S, side="left")
-        hi = np.searchsorted(tr, tr + 0.5 * LOCAL_S, side="right")
-        n_w, d_w = cn[hi] - cn[lo], cd[hi] - cd[lo]
-        out[rows] = (n_w + LOCAL_PRIOR_DOF * scale2) / ((d_w + LOCAL_PRIOR_DOF) * scale2)
     return out
 
 
