@@ -19,6 +19,12 @@ Camera kinds (each artefact's range from what such cameras do):
     The paper's rig (the renderer's defaults, 960x540 at 30 fps).
 ``handheld``
     A consumer camera held over the rock, 1280x720 at 30 fps, H.264.
+``camcorder-pal``
+    PAL: 720x576 at 25 fps, two interlaced fields (bottom first as DV records them, or
+    top first as HDV and broadcast), 59:54 pixels (4:3) or 118:81 (16:9), 4:2:0 colour
+    shared by the fields as a transcode leaves it (each colour row both fields' mean, or
+    the top field's line alone) or each field's own as the camera's file, H.264 at
+    1.5-4 Mbit/s; on a ladder, a pole or handheld.
 
 On top, each at random: specular lamp glare, a person's shadow, a broom over the rock,
 auto exposure / white balance, a low bitrate (a quarter of the kind's).
@@ -40,7 +46,7 @@ from .encode import EncodingConfig
 from .motion import CameraConfig
 from .sensor import SensorConfig
 
-KINDS = ("camcorder", "phone", "action", "ladder", "handheld")
+KINDS = ("camcorder", "phone", "action", "ladder", "handheld", "camcorder-pal")
 
 
 @dataclass
@@ -114,6 +120,16 @@ def draw_setup(rng: np.random.Generator, kind: str | None = None,
                     sensor=SensorConfig(scan="interlaced", field_order="bff", chroma="411"))
         bitrate = u(0.8e6, 2.0e6)
         codec = "h264"
+    elif kind == "camcorder-pal":
+        motion = str(rng.choice(["ladder", "pole", "handheld"]))
+        aspect = 59 / 54 if u() < 0.7 else 118 / 81
+        cam = CameraConfig(motion=motion, pixel_aspect=aspect, k1=u(-0.08, -0.02))
+        order = "bff" if u() < 0.5 else "tff"
+        base = dict(width=720, height=576, fps=25.0, camera=cam,
+                    sensor=SensorConfig(scan="interlaced", field_order=order, chroma="420"))
+        bitrate = u(1.5e6, 4.0e6)
+        codec = "h264"
+        on["field_colour"] = str(rng.choice(["shared", "top", "own"]))
     elif kind == "phone":
         fps = float(rng.choice([30.0, 60.0]))
         motion = str(rng.choice(["handheld", "pole"]))
@@ -170,13 +186,15 @@ def draw_setup(rng: np.random.Generator, kind: str | None = None,
     if u() < 0.3:
         extra["occlusion"] = True
         on["broom"] = True
-    enc = EncodingConfig(codec=codec, bitrate_bps=bitrate, rotation_deg=on.get("rotation", 0))
+    enc = EncodingConfig(codec=codec, bitrate_bps=bitrate, rotation_deg=on.get("rotation", 0),
+                         field_colour=on.pop("field_colour", "shared"))
     cfg = RenderConfig(**base, **extra, sensor=sen, encoding=enc, stopped_tail_s=0.7)
     cam = cfg.camera
     summary = dict(kind=kind, size=f"{cfg.width}x{cfg.height}",
                    fps=round(cfg.fps or 30.0, 3), motion=cam.motion,
                    lens=f"{cam.lens} k1={cam.k1:.2f} k2={cam.k2:.2f}",
                    scan=sen.scan, readout_ms=round(1e3 * sen.readout_s, 1),
-                   vfr=sen.frame_jitter_s > 0, codec=f"{codec} {bitrate / 1e6:.2g} Mb/s",
+                   vfr=sen.frame_jitter_s > 0, codec=f"{codec} {bitrate / 1e6:.2g} Mb/s"
+                   + ("" if sen.scan != "interlaced" else f", {enc.field_colour} colour"),
                    artefacts=",".join(k for k, v in on.items() if v) or "-")
     return Setup(kind, cfg, draw_shot(rng), int(rng.integers(2**31)), summary)

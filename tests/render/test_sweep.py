@@ -34,6 +34,10 @@ def test_every_kind_draws_valid_setups_with_its_artefacts(kind):
             assert sen.interlaced and sen.chroma == "411", seed
             assert (cfg.width, cfg.height) == (720, 480) and cfg.camera.pixel_aspect < 1
             assert cfg.encoding.codec == "h264" and cfg.encoding.bitrate_bps <= 2e6, seed
+        if kind == "camcorder-pal":
+            assert sen.interlaced and sen.chroma == "420" and cfg.fps == 25.0, seed
+            assert (cfg.width, cfg.height) == (720, 576) and cfg.camera.pixel_aspect > 1
+            assert cfg.encoding.field_colour in ("shared", "top", "own"), seed
         if kind == "phone":
             assert sen.readout_s > 0 and sen.frame_jitter_s > 0, seed
         if kind == "action":
