@@ -500,3 +500,38 @@ def test_top_field_colour_is_the_top_fields_exposure():
     only_top = top_field_colour_i420(np.repeat(img[0::2], 2, axis=0))
     assert np.array_equal(out[h:], only_top[h:]), seed
     assert not np.array_equal(out[:h], only_top[:h]) or np.array_equal(top, bottom), seed
+
+
+def test_the_fields_share_of_the_image_motion_and_its_sigma():
+    """``field_motion_share``: fields that differ by a share of the image's motion
+    between them give that share within 4 of its sigmas (and 5 % for the other field's
+    interpolation between its rows); fields that do not give a
+    share under 5 sigmas (the rule that moves own-colour fields) in nearly every draw."""
+    from curltrack.track.results import FIELD_SHARE_Z, field_motion_share
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 6.0, 1 / 50.0)
+    field = np.arange(t.size) % 2
+    ok = rng.random(t.size) > 0.05
+    flagged = 0
+    for k in range(20):
+        f_hz = rng.uniform(0.5, 3.0)   # (a pole's sway; faster, the linear interpolation
+        # of the other field between its rows blunts the difference: 0.81 of it at 5 Hz)
+        v = np.column_stack([0.3 * np.cos(0.5 * t) + 0.3 * np.sin(2 * np.pi * f_hz * t),
+                             0.3 * np.sin(2 * np.pi * f_hz * t + rng.uniform(0, 6))])
+        motion = v / 50.0
+        path = np.column_stack([0.01 * t ** 2, 2.0 * t - 0.1 * t ** 2])
+        noise = rng.normal(0.0, rng.uniform(0.3e-3, 1e-3), (t.size, 2))
+        share = rng.uniform(0.3, 0.6) if k % 2 else 0.0
+        half = np.where(field == 0, 0.5, -0.5)[:, None]
+        xy = path + half * share * motion + noise
+        got, sig = field_motion_share(t, xy, field, ok, motion)
+        assert np.all(np.abs(np.diag(got) + share) < 4 * np.diag(sig) + 0.05 * share), \
+            (seed, k, share, np.diag(got), np.diag(sig))
+        if share == 0.0:
+            flagged += bool(np.all(np.abs(np.diag(got)) > FIELD_SHARE_Z * np.diag(sig)))
+        else:
+            assert np.all(np.abs(np.diag(got)) > FIELD_SHARE_Z * np.diag(sig)), (
+                seed, k, share, f_hz, np.diag(got), np.diag(sig))
+    assert flagged == 0, (seed, flagged)
