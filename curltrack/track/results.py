@@ -214,6 +214,12 @@ def field_offset(t, q, field, ok) -> np.ndarray:
 FIELD_SHARE_Z = 5.0
 
 
+def _median_size(t, window_s: float) -> int:
+    """Odd running-median length (rows) spanning ``window_s`` (s) of rows at times ``t``."""
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    return int(max(1, min(t.size, round(window_s / max(dt, 1e-6))))) | 1
+
+
 def _motion_share(d, m) -> tuple[np.ndarray, np.ndarray]:
     """(share (k, k), its 1 sigma (k, k)) of field differences ``d`` (n, k) that follow
     the image's motion ``m`` (n, k): least squares with an intercept, one 3-sigma pass;
@@ -278,8 +284,7 @@ def field_offset_along(t, q, field, ok, window_s: float = FIELD_PULL_WINDOW_S,
         share = _motion_share(d, m[rows])[0]
         m_all = np.where(np.isfinite(m), m, 0.0)
         d = d - m_all[rows] @ share.T
-    dt = float(np.median(np.diff(t[rows]))) if rows.size > 1 else 1.0
-    size = int(max(1, min(rows.size, round(window_s / max(dt, 1e-6))))) | 1
+    size = _median_size(t[rows], window_s)
     for j in range(q.shape[1]):
         good = np.isfinite(d[:, j])
         if good.sum() < 4:
@@ -340,9 +345,8 @@ def image_speed(t, velocity, window_s: float = IMAGE_SPEED_WINDOW_S) -> np.ndarr
     good = np.flatnonzero(np.isfinite(speed))
     if good.size < 3:
         return np.full(len(t), np.nan)
-    dt = float(np.median(np.diff(t[good])))
-    size = int(max(1, min(good.size, round(window_s / max(dt, 1e-6))))) | 1
-    return np.interp(t, t[good], median_filter(speed[good], size=size, mode="nearest"))
+    return np.interp(t, t[good], median_filter(speed[good], size=_median_size(t[good], window_s),
+                                               mode="nearest"))
 
 
 def colour_mixing_sigma(t, shot, ok, dt_fields: float,
@@ -769,15 +773,19 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     a, b = apply_h(r0.H, np.vstack([p0, p0 + (0.0, -10.0)]))
     fld = np.array([r.field if r.field is not None else -1 for r in records])
     shared_colour = not getattr(info, "colour_per_field", True) and bool((fld >= 0).any())
+    if (fld >= 0).any():
+        # each field moved by half the fields' difference, the image's motion between
+        # them (the field period's)
+        half = np.where(fld == 0, 0.5, np.where(fld == 1, -0.5, 0.0))[:, None]
+        v_image = image_velocity(records, t, fld, ok)
+        motion = v_image * (0.5 / info.fps)
     if shared_colour:
         # a stream coded progressive shares its 4:2:0 colour between the two fields: the
         # colours each field is measured by are the two exposures' mean, and pull both
         # towards it alike - their mean is free of it.  The pull follows the image's
         # motion between the fields (a rendered clip: 20 mm at release, 5 mm at 3 s), so
         # it is taken off as it changes, before the origin is fitted to the first rows
-        half = np.where(fld == 0, 0.5, np.where(fld == 1, -0.5, 0.0))[:, None]
-        v_image = image_velocity(records, t, fld, ok)
-        pull_xy = field_offset_along(t, centre, fld, ok, motion=v_image * (0.5 / info.fps))
+        pull_xy = field_offset_along(t, centre, fld, ok, motion=motion)
         centre = centre + half * pull_xy
     elif (fld >= 0).any():
         # fields read with their own colour can still differ by a share of the image's
@@ -786,8 +794,6 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         # so too): where that share is sure (5 sigma), each field takes half of it off
         # (three such clips: 1.69 -> 1.20, 2.79 -> 2.09, 3.21 -> 2.06 mm per coordinate;
         # the worst, a first row 11.6 mm off at 5.1 sigma, 8.2 mm)
-        half = np.where(fld == 0, 0.5, np.where(fld == 1, -0.5, 0.0))[:, None]
-        motion = image_velocity(records, t, fld, ok) * (0.5 / info.fps)
         share, share_sigma = field_motion_share(t, centre, fld, ok, motion)
         if np.all(np.abs(np.diag(share)) > FIELD_SHARE_Z * np.diag(share_sigma)):
             centre = centre + half * (np.where(np.isfinite(motion), motion, 0.0) @ share.T)
