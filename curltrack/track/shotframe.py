@@ -295,7 +295,7 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = WINDOW_S, min_
 def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
                   window_s: float = WINDOW_S, min_points: int = 8, min_scatter=MIN_SCATTER_M,
                   min_cubic=EXTRAPOLATION_M_S3, noise=None, extrapolated=True,
-                  weights=None) -> float:
+                  weights=None, field=None) -> float:
     """1 sigma (m; per coordinate) of the value at t = 0 of :func:`initial_state`'s fit.
 
     The fit's own variance plus, when the first frame is after t = 0
@@ -313,8 +313,13 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
     the error they carry, not with the shot's average scatter.  ``noise`` (sigma, rho):
     instead, the intercept's variance under that AR(1) frame noise (of the whole
     series; optionally ``(sigma, rho, step_s)``: rho per ``step_s`` seconds, e.g. one
-    interlaced field's step, twice the rows').  Floor: ``min_scatter`` (m or rad) as
-    white noise.  ``weights``: the fit's row weights (:func:`row_weights`).
+    interlaced field's step, twice the rows'), or under the window's own residuals'
+    AR(1) noise where that is larger (errors that persist over the first rows more than
+    over the shot: the sweep's phones, blurred and coded at their fastest there - 39
+    renders' theta0 error over its sigma RMS 2.0 -> 1.7, over 3 sigma 3 -> 1 of them;
+    ``field``: the rows' interlaced fields, :func:`_row_correlation`).  Floor:
+    ``min_scatter`` (m or rad) as white noise.  ``weights``: the fit's row weights
+    (:func:`row_weights`).
     """
     q = np.asarray(q, float).reshape(len(t), -1)
     deg, A, coef, res, sw = _window_fit(t, q, window_s, min_points, weights)
@@ -330,6 +335,14 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
         tk = A[:, 1]
         lag = np.abs(np.subtract.outer(tk, tk)) / max(step, 1e-9)
         stat = sig * float(np.sqrt(max(p0 @ (rho ** lag) @ p0, 0.0)))
+        if len(res) >= 12:
+            f_w = None if field is None else np.asarray(field)[np.searchsorted(t, tk)]
+            res_u = res * sw[:, None]
+            rho_w, corr = _row_correlation(res_u, tk, f_w, f_w)
+            dof = max(len(res) - A.shape[1] * (1 + rho_w) / (1 - rho_w), 0.25 * len(res))
+            pw = p0 / sw
+            stat = max(stat, float(np.sqrt(float(np.sum(res_u ** 2)) / dof / res.shape[1]
+                                           * max(float(pw @ corr @ pw), 0.0))))
     else:
         # (the bench's 640x360 hand-held clip: frames 1-3 read 6 mm across the rink off
         # the rest, the quadratic bent to them and every row was 3.7 mm off; a common
@@ -694,7 +707,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     # under a 0.9 deg sigma)
     theta0_sigma = _origin_sigma(ts, ths, MAX_ANGULAR_DECELERATION, window_s=window,
                                  min_scatter=MIN_SCATTER_RAD, min_cubic=EXTRAPOLATION_RAD_S3,
-                                 noise=_frame_noise(ts, ths, fs), extrapolated=_first_late(ts)) \
+                                 noise=_frame_noise(ts, ths, fs), extrapolated=_first_late(ts),
+                                 field=fs) \
         if ts.size else float("inf")
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
