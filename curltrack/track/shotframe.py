@@ -314,10 +314,11 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
     instead, the intercept's variance under that AR(1) frame noise (of the whole
     series; optionally ``(sigma, rho, step_s)``: rho per ``step_s`` seconds, e.g. one
     interlaced field's step, twice the rows'), or under the window's own residuals'
-    AR(1) noise where that is larger (errors that persist over the first rows more than
-    over the shot: the sweep's phones, blurred and coded at their fastest there - 39
-    renders' theta0 error over its sigma RMS 2.0 -> 1.7, over 3 sigma 3 -> 1 of them;
-    ``field``: the rows' interlaced fields, :func:`_row_correlation`).  Floor:
+    AR(1) noise where that is larger beyond its own sampling error (errors that persist
+    over the first rows more than over the shot: the sweep's phones, blurred and coded
+    at their fastest there - 39 renders' theta0 error over its sigma RMS 2.00 -> 1.53,
+    over 3 sigma 3 -> 1 of them; ``field``: the rows' interlaced fields,
+    :func:`_row_correlation`).  Floor:
     ``min_scatter`` (m or rad) as white noise.  ``weights``: the fit's row weights
     (:func:`row_weights`).
     """
@@ -339,10 +340,8 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
             f_w = None if field is None else np.asarray(field)[np.searchsorted(t, tk)]
             res_u = res * sw[:, None]
             rho_w, corr = _row_correlation(res_u, tk, f_w, f_w)
-            dof = max(len(res) - A.shape[1] * (1 + rho_w) / (1 - rho_w), 0.25 * len(res))
-            pw = p0 / sw
-            stat_w = float(np.sqrt(float(np.sum(res_u ** 2)) / dof / res.shape[1]
-                                   * max(float(pw @ corr @ pw), 0.0)))
+            stat_w = float(np.sqrt(_correlated_variance(res_u, p0 / sw, corr, rho_w,
+                                                        A.shape[1])))
             # (only where it is larger beyond its own sampling error, 2 sigma: a few
             # dozen rows' noise read as often too high as too low, and the larger of two
             # readings is biased - clean simulated rows' theta0 error over sigma RMS
@@ -444,6 +443,7 @@ def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
     """
     t = np.asarray(t, float)
     q = np.asarray(q, float).reshape(len(t), -1)
+    field = None if field is None else np.asarray(field)
     out = {"sigma": 0.0, "difference": 0.0, "chi2": float("nan")}
     if len(t) < 16:
         return out
@@ -493,15 +493,9 @@ def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
         w = w / sw_u
         res2 = (q[sel] - A2 @ coef2) * sw2[:, None]
         res = np.vstack([res1 * sw1[:, None], res2])
-        # (+ 4 / rows: a fitted cubic's residuals read a correlation about that low;
-        # the fits take (1 + rho) / (1 - rho) times their parameters' share of the
-        # residuals' variance when the rows' errors persist)
-        rho, corr = _row_correlation(
-            res2, times, *((None, None) if field is None else
-                           (np.asarray(field)[sel], np.asarray(field)[np.searchsorted(t, times)])))
-        dof = max(len(res) - (A1.shape[1] + A2.shape[1]) * (1 + rho) / (1 - rho),
-                  0.25 * len(res))
-        white2 = float(np.sum(res ** 2)) / dof / res.shape[1] * float(w @ corr @ w)
+        rho, corr = _row_correlation(res2, times, None if field is None else field[sel],
+                                     None if field is None else field[np.searchsorted(t, times)])
+        white2 = _correlated_variance(res, w, corr, rho, A1.shape[1] + A2.shape[1])
         model2 = ((cubic1 * float(p1 @ A1[:, 1] ** 3)) ** 2
                   + (quartic * float(p2 @ A2[:, 1] ** 4)) ** 2)
         d = coef1[0] - coef2[0]
@@ -511,6 +505,18 @@ def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
                        sigma=(float(np.sqrt(max(float(np.mean(d ** 2)) - white2 - model2, 0.0)))
                               if chi2 > ORIGIN_CHECK_CHI2 else 0.0))
     return out
+
+
+def _correlated_variance(res, w, corr, rho, n_params) -> float:
+    """Variance of ``w @ errors`` (per coordinate) for rows whose errors have the
+    correlation ``corr`` (:func:`_row_correlation`), their scale read from the fits'
+    residuals ``res`` (rows, k; in units of a row of weight 1): the residuals' mean
+    square over their degrees of freedom - the fits take (1 + rho) / (1 - rho) times
+    their ``n_params`` parameters' share of the residuals' variance when the rows'
+    errors persist (at least a quarter of the rows left)."""
+    dof = max(len(res) - n_params * (1 + rho) / (1 - rho), 0.25 * len(res))
+    return float(np.sum(res ** 2)) / dof / res.shape[1] * max(float(w @ corr @ w), 0.0)
+
 
 def _row_correlation(res, times, field_res=None, field=None):
     """(rho, C): the rows' AR(1) error correlation from one row to the next, read from
@@ -527,7 +533,7 @@ def _row_correlation(res, times, field_res=None, field=None):
     most as a single series'), and C is the larger of that and the rows' own at each
     pair (the origin's check on simulated clean shots whose 0.3-2 mm errors persist
     within each field, rho 0-0.8 per field step: 20 % called when read from the next
-    rows alone, ~2 % so).  rho is then the larger of the rows' and the square root of
+    rows alone, ~1 % so).  rho is then the larger of the rows' and the square root of
     the fields'.
     """
     den = max(float(np.sum(res ** 2)), 1e-300)
