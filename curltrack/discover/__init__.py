@@ -172,9 +172,9 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     for (j, c, _), (infl, tau) in zip(base.segments, noise0):
         shots[j].noise[c] = replace(shots[j].noise[c], inflation=infl, tau=tau)
     smooth = smooth_misfit(base, fit0)
-    noise_warnings = persistent_noise_warnings(
-        [(shots[j].name, c, infl) for (j, c, _), (infl, _) in zip(base.segments, noise0)],
-        smooth={(shots[m["shot"]].name, m["coord"]) for m in smooth})
+    inflations = [(shots[j].name, c, infl) for (j, c, _), (infl, _) in zip(base.segments, noise0)]
+    smooth_coords = {(shots[m["shot"]].name, m["coord"]) for m in smooth}
+    noise_warnings = persistent_noise_warnings(inflations, smooth=smooth_coords)
     before = structure_tests(segments_of(base, fit0, noise0))
     f_time = folds_time(base)
     f_shot = folds_shot(base) if len(shots) > 1 else None
@@ -254,41 +254,19 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
                           warnings=[*unit_warnings, *thinned, *curl_warnings,
                                     *outlier_warnings, *spread_warnings, *noise_warnings],
                           smooth=smooth)
-    return _noise_after_finding(report, scores, shots, noise_warnings)
-
-
-def _noise_after_finding(report, scores, shots, noise_warnings):
-    """The report with its persisting-noise warnings judged again on the named
-    finding's residuals: the baseline's low-frequency excess may be the effect itself
-    (the demo's tracked shot with a hidden friction patch: y's baseline residuals held
-    ~7e4x white noise's, and the warning called it an instrument's errors while the
-    verdict, rightly, named the patch).  Where the finding leaves it under
-    :data:`PERSISTENT_NOISE_WARN` the warning says the finding accounts for it - and
-    still that an instrument whose errors persist could have made the finding (a
-    candidate fitted to clean step-noise shots takes their inflation 14-22 down to ~3
-    too: the numbers do not tell the two apart); where not, it gives both numbers."""
+    # the baseline's low-frequency excess may be the named effect itself (the demo's
+    # tracked shot with a hidden friction patch: y's baseline residuals held ~7e4x white
+    # noise's, and the warning called it an instrument's errors while the verdict,
+    # rightly, named the patch): judged again on that finding's residuals
     named = next((sc for sc in scores if sc.name == report.verdict and sc.fit is not None
                   and sc._model is not None), None)
     if named is None or not noise_warnings:
         return report
     after = {(shots[j].name, c): infl for (j, c, _), (infl, _) in
              zip(named._model.segments, residual_noise(named._model, named.fit.r))}
-    keep = []
-    for w in report.warnings:
-        key = next(((n, c) for n, c in after if w.startswith(f"{n}: {c}: the residuals hold")),
-                   None)
-        if w not in noise_warnings or key is None:
-            keep.append(w)
-            continue
-        head = w[:w.index(" of white noise") + len(" of white noise")].replace(
-            "the residuals hold", "the baseline's residuals hold", 1)
-        if after[key] > PERSISTENT_NOISE_WARN:
-            keep.append(f"{w}; with {report.verdict} fitted, still {after[key]:.0f}x")
-        else:
-            keep.append(f"{head}, {report.verdict}'s {after[key]:.1f}x: the named effect "
-                        "accounts for what persisted (only an instrument whose errors "
-                        "persist for seconds, e.g. steps, could have made it instead)")
-    return replace(report, warnings=keep)
+    again = dict(zip(noise_warnings, persistent_noise_warnings(
+        inflations, smooth=smooth_coords, after=after, named=report.verdict)))
+    return replace(report, warnings=[again.get(w, w) for w in report.warnings])
 
 
 #: the per-shot exponents are taken when they lower the BIC by more than this ("very
@@ -496,12 +474,19 @@ def drop_isolated_outliers(model: JointModel, fit) -> list[str]:
 PERSISTENT_NOISE_WARN = 10.0
 
 
-def persistent_noise_warnings(inflations, smooth=frozenset()) -> list[str]:
+def persistent_noise_warnings(inflations, smooth=frozenset(), after=None,
+                              named=None) -> list[str]:
     """A warning per (shot, coordinate) whose residuals' low-frequency noise exceeds
     :data:`PERSISTENT_NOISE_WARN` times white noise's; ``inflations`` = [(shot name,
     coordinate, inflation)]; ``smooth``: the (shot name, coordinate) whose misfit is
     smooth (:func:`~curltrack.discover.residuals.smooth_misfit`): the model's, not an
-    instrument's."""
+    instrument's.
+
+    ``after`` {(shot name, coordinate): inflation} of the ``named`` finding's residuals:
+    where that is under the limit, the warning says the finding accounts for what
+    persisted - and still that an instrument whose errors persist could have made the
+    finding (a candidate fitted to clean step-noise shots takes their inflation 14-22
+    down to ~3 too: the numbers do not tell the two apart); where not, it gives both."""
     def why(name, coord):
         if (name, coord) in smooth:
             return ("smooth, not an instrument's jumps: the baseline's misfit, far above "
@@ -511,8 +496,19 @@ def persistent_noise_warnings(inflations, smooth=frozenset()) -> list[str]:
                 "finding is judged against it, but a verdict other than none on such data "
                 "may still be the instrument, not the rock")
 
-    return [f"{name}: {coord}: the residuals hold {infl:.0f}x the low-frequency noise of "
-            f"white noise ({why(name, coord)})"
+    def warning(name, coord, infl):
+        left = None if after is None else after.get((name, coord))
+        if left is None:
+            return (f"{name}: {coord}: the residuals hold {infl:.0f}x the low-frequency "
+                    f"noise of white noise ({why(name, coord)})")
+        if left > PERSISTENT_NOISE_WARN:
+            return (f"{warning(name, coord, infl)}; with {named} fitted, still {left:.0f}x")
+        return (f"{name}: {coord}: the baseline's residuals hold {infl:.0f}x the "
+                f"low-frequency noise of white noise, {named}'s {left:.1f}x: the named "
+                "effect accounts for what persisted (only an instrument whose errors "
+                "persist for seconds, e.g. steps, could have made it instead)")
+
+    return [warning(name, coord, infl)
             for name, coord, infl in inflations if infl > PERSISTENT_NOISE_WARN]
 
 
