@@ -26,7 +26,7 @@ from scipy.optimize import least_squares
 
 from .noise import robust_sigma, white_sigma
 
-__all__ = ["StopTimes", "detect_stops", "fit_final_approach", "series_stops"]
+__all__ = ["StopTimes", "detect_stops", "fit_final_approach", "rotation_stop", "series_stops"]
 
 #: Displacement (in units of the noise sigma) below which a coordinate is "not moving".
 MIN_MOTION_SIGMA = 12.0
@@ -265,6 +265,14 @@ def _translation_coordinate(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.column_stack([d @ u, d @ np.array([-u[1], u[0]])])
 
 
+def rotation_stop(t: np.ndarray, theta: np.ndarray, dt: float):
+    """:func:`fit_final_approach` of an angle (rad, either sense of turn: turned to
+    increase by the sign of its last rows against its first): ``(t_stop, err, note)``."""
+    theta = np.asarray(theta, float)
+    sign = np.sign(np.median(theta[-5:]) - np.median(theta[:3])) or 1.0
+    return fit_final_approach(t, theta * sign, dt)
+
+
 def detect_stops(data: pd.DataFrame, fps: float | None = None) -> StopTimes:
     """Stop times of translation and rotation of a series (contract columns).
 
@@ -316,8 +324,7 @@ def detect_stops(data: pd.DataFrame, fps: float | None = None) -> StopTimes:
     if tr.size < 8:
         t_rot, e_rot, note = None, None, "too few measured frames with theta"
     else:
-        th_sign = np.sign(np.median(th[-5:]) - np.median(th[:3])) or 1.0
-        t_rot, e_rot, note = fit_final_approach(tr, th * th_sign, dt)
+        t_rot, e_rot, note = rotation_stop(tr, th, dt)
     if note:
         out.notes.append(f"rotation: {note}")
     # A motion that never rises above the noise (pure rotation's translation, a
