@@ -15,7 +15,8 @@ from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, corr
                        LAYOUT_SPAN_BIAS_PX, estimate_height, focal_for_height,
                        layout_scale_mismatch)
 from .scatter import CLIP as PATH_CLIP
-from .shotframe import WINDOW_S, initial_state, origin_weights, row_weights, to_shot_frame
+from .shotframe import (WINDOW_S, initial_state, leading_strays, origin_weights, row_weights,
+                        to_shot_frame)
 from ..series.stops import detect_stops
 from ..sanity import speed_rise
 
@@ -679,6 +680,42 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
     return np.flatnonzero(ok)
 
 
+def place_origin(shot_frame, t, centre, ok, sigma, max_sigma_m: float, gross_m: float):
+    """``shot_frame(ok)`` (:func:`~.shotframe.to_shot_frame` of the rows ``ok``), or the
+    same without its first rows that the path of the rows after them misses by over
+    :data:`PATH_CLIP` sigmas (:func:`~.shotframe.leading_strays`: wrong lattice poses,
+    a marker taken for another): always those it misses by over ``gross_m`` (m; a
+    lattice slip's size), the others where they make the origin - where it cannot be
+    placed with them (sigma over ``max_sigma_m``, m) and can without, or its sigma
+    without them is under half of it with them (they hold 3/4 of its variance).
+
+    A path's first rows depart from the later rows' quadratic by millimetres, so right
+    first rows are called strays too (23 of 44 rendered sweep clips, misses up to
+    ~4 mm); leaving them out only lengthens the origin's extrapolation, which never
+    halved its sigma there.  The one clip where it did had first rows 8-35 mm off the
+    truth (sigma 1.5-1.9 mm; origin sigma 7.3 -> 1.4 mm), and a 0.39 Mbit/s camcorder
+    refused whole had three fields 13-21 cm off.
+
+    Returns ``(ok, shot, left_out)``: the rows kept, their shot frame and the indices
+    of the rows left out (empty when none are).
+    """
+    idx = np.flatnonzero(ok)
+    stray, miss = leading_strays(t[idx], centre[idx], np.asarray(sigma)[idx], PATH_CLIP)
+    gross = idx[stray & (miss > gross_m)]
+    ok = ok.copy()
+    ok[gross] = False
+    shot = shot_frame(ok)
+    rest = idx[stray & (miss <= gross_m)]
+    if rest.size:
+        ok_left = ok.copy()
+        ok_left[rest] = False
+        shot_left = shot_frame(ok_left)
+        with_them, without = shot["origin_sigma_m"], shot_left["origin_sigma_m"]
+        if without <= max_sigma_m and (with_them > max_sigma_m or without <= 0.5 * with_them):
+            return ok_left, shot_left, np.sort(np.r_[gross, rest])
+    return ok, shot, gross
+
+
 def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None) -> Series:
     """Assemble the Series (see :func:`curltrack.track.track_video` for the columns)."""
     n = len(records)
@@ -823,9 +860,21 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
             f"pushed): give --start-frame at the release, about frame {frame[k0]}",
             path=path, where=f"frames {frame[0]}-{frame[k0]}")
     # (the origin's fit weighs each row by its own sigma)
-    shot = to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
-                         angle_rows=uncertain_cell & np.isfinite(phi),
-                         field=fld if (fld >= 0).any() else None, sigma=sigma_xy)
+    def shot_frame(ok):
+        return to_shot_frame(t, centre, phi, ok, up_direction=b - a, settings=st,
+                             angle_rows=uncertain_cell & np.isfinite(phi),
+                             field=fld if (fld >= 0).any() else None, sigma=sigma_xy)
+
+    ok, shot, stray = place_origin(shot_frame, t, centre, ok, sigma_xy, st.max_origin_sigma_m,
+                                   st.ambiguous_cells * min(calib.spacing_x_m,
+                                                            calib.spacing_y_m))
+    if stray.size:
+        why = (f"off the path of the rows after them by more than {PATH_CLIP:g} times "
+               "sigma_xy (a lattice or marker error)")
+        for i in stray:
+            records[i].status = why
+        warnings.append(f"{path}: frame(s) {frame_ranges(frame[stray])}: the first measured "
+                        f"rows, {why}: left out, the origin placed without them (ok = 0)")
     if shot["origin_sigma_m"] > st.max_origin_sigma_m:
         how = (f"the first measured frame is at t = {t[ok][0]:.2f} s and the origin (the "
                "rock at t = 0) cannot be extrapolated back to it" if shot["origin_extrapolated"]

@@ -569,6 +569,36 @@ def _row_correlation(res, times, field_res=None, field=None):
 FIELD_RHO_MAX = 0.25 ** (1.0 / 6.0)
 
 
+def leading_strays(t: np.ndarray, q: np.ndarray, sigma: np.ndarray, clip: float,
+                   window_s: float = WINDOW_S) -> tuple[np.ndarray, np.ndarray]:
+    """The first rows (the first third of the origin's window) that the path of the
+    rows after them misses by more than ``clip`` times their sigma (scaled up by those
+    rows' own robust scatter about it when it is larger): ``(stray, miss)``, (N,) bool
+    and (N,) the miss (the units of ``q``, largest over its columns).
+
+    A quadratic through the rows of the next window (from a third of a window on) is
+    extrapolated back to them.  Its misses are large only for gross errors: a path's
+    start departs from the later rows' quadratic by a few millimetres (rendered
+    clips' right first rows were called so at 5-21 sigma), so this is for the
+    origin that cannot be placed at all - a 0.39 Mbit/s camcorder's first three
+    fields 13-21 cm off the rest, their lattice poses wrong, refused the whole clip.
+    """
+    t = np.asarray(t, float)
+    q = np.asarray(q, float).reshape(len(t), -1)
+    s = np.asarray(sigma, float)
+    lead = t < t[0] + window_s / 3.0
+    later = ~lead & (t <= t[0] + window_s * 4.0 / 3.0) & np.isfinite(s) & (s > 0)
+    if not lead.any() or np.count_nonzero(later) < 8:
+        return np.zeros(len(t), bool), np.zeros(len(t))
+    w = 1.0 / s[later]
+    A = np.vander(t[later], 3, increasing=True)
+    coef = np.linalg.lstsq(A * w[:, None], q[later] * w[:, None], rcond=None)[0]
+    scale = max(1.0, robust_sigma(((q[later] - A @ coef) * w[:, None]).ravel()))
+    miss = np.abs(q - np.vander(t, 3, increasing=True) @ coef).max(axis=1)
+    with np.errstate(invalid="ignore"):
+        return lead & (miss > clip * scale * s), np.where(lead, miss, 0.0)
+
+
 #: Fewest windows behind :func:`intercept_scatter` (fewer: no reading).
 MIN_SCATTER_WINDOWS = 4
 
