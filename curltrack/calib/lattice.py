@@ -431,9 +431,12 @@ def fit_lattice(xs, w, Hc, K, dist=(0.0, 0.0), free=(), centre=None, radii=(None
             bw = np.full(len(rows), bands[1])
             bw[:np.count_nonzero(fam_a)] = bands[0]
             ww = w_s[rows] * np.clip(1 - (r / bw) ** 2, 0, None) ** 2  # Tukey biweight
-            JW = J * ww[:, None]
-            A = J.T @ JW
-            g = -JW.T @ r
+            with np.errstate(over="ignore", invalid="ignore"):
+                JW = J * ww[:, None]
+                A = J.T @ JW
+                g = -JW.T @ r
+            if not (np.isfinite(A).all() and np.isfinite(g).all()):
+                break  # (diverged: a random set-up's fit, seed 250954702) - ends where it was
             A += 1e-9 * np.trace(A) * np.eye(len(A))
             for col, j in enumerate(stage_free):
                 if j >= 2:  # prior on the distortion centre, worth ~100 thread pixels
