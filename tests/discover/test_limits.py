@@ -107,7 +107,13 @@ def test_a_series_from_another_origin_gives_the_same_verdict():
                                      theta=d.theta + dth))
     a, b = discover(s, seed=1, n_boot=200), discover(moved, seed=1, n_boot=200)
     what = f"seed {seed}: offset {dx:.2f}, {dy:.2f} m, {dth:.2f} rad, turned {turn:.3f} rad"
-    assert a.verdict == b.verdict == "none", (what, a.verdict, b.verdict)
+    # (the same verdict from both origins; a clean draw's verdict is none but for the
+    # look-elsewhere level's chance alarms - seed 935394457: a 3-sigma pick of 2 mm/s,
+    # delta-BIC 2.3 over a 1 % threshold of -0.7, from either origin - which the clean
+    # worlds' false-alarm tests count)
+    assert a.verdict == b.verdict, (what, a.verdict, b.verdict)
+    assert [f.effect for f in a.findings if f.supported] == \
+        [f.effect for f in b.findings if f.supported], (what, a.verdict)
     p = b.baseline["params"]
     assert abs(p["x0[0]"] - dx) < 0.01 and abs(p["y0[0]"] - dy) < 0.01, (what, p)
     assert abs(p["theta0[0]"] - dth) < 0.01 and abs(p["skew[0]"] - turn) < 0.005, (what, p)
