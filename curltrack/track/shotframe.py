@@ -595,8 +595,7 @@ def leading_strays(t: np.ndarray, q: np.ndarray, sigma: np.ndarray, clip: float,
     coef = np.linalg.lstsq(A * w[:, None], q[later] * w[:, None], rcond=None)[0]
     scale = max(1.0, robust_sigma(((q[later] - A @ coef) * w[:, None]).ravel()))
     miss = np.abs(q - np.vander(t, 3, increasing=True) @ coef).max(axis=1)
-    with np.errstate(invalid="ignore"):
-        return lead & (miss > clip * scale * s), np.where(lead, miss, 0.0)
+    return lead & (miss > clip * scale * s), np.where(lead, miss, 0.0)
 
 
 #: Fewest windows behind :func:`intercept_scatter` (fewer: no reading).
