@@ -93,6 +93,9 @@ class VideoInfo:
         Each field has its own colour rows, as :attr:`FieldMotion.colour_per_field`
         shows (True when the content shows nothing: a still camera).  Each field is
         then measured from its own colour, else from colour the two share.
+    colour_kept : str
+        Why the stream's format itself gives each field its own colour
+        (:func:`field_colour_kept`: DV, colour on every line), "" when it does not say.
     content_note : str
         "" when a stream flagged interlaced is measured as flagged; else what its
         content showed and what was done (order reversed, one exposure, shared colour).
@@ -124,6 +127,7 @@ class VideoInfo:
     pixel_aspect: float = 1.0
     fields_from_content: str = ""
     colour_per_field: bool = True
+    colour_kept: str = ""
     content_note: str = ""
     streams: str = ""
     time_tick_s: float = 0.0
@@ -155,6 +159,8 @@ class VideoInfo:
             scan += f" (flagged progressive: {self.fields_from_content})"
         if self.content_note:
             scan += f" ({self.content_note})"
+        if self.interlaced and self.colour_kept:
+            scan += f", each field its own colour ({self.colour_kept})"
         rot = f", rotation tag {self.rotation_deg} deg" if self.rotation_deg else ""
         if abs(self.pixel_aspect - 1.0) > 1e-3:
             rot += (f", non-square pixels ({self.pixel_aspect:.4g}: resampled to square "
@@ -370,6 +376,7 @@ def _av_probe(path) -> dict:
                         "pixel_aspect": float(sar) if sar else 1.0,
                         "interlaced": bool(fr.interlaced_frame),
                         "top_field_first": order not in (3, 5),
+                        "colour_kept": field_colour_kept(cc.name, fr.format),
                         "rotation_deg": int(round(getattr(fr, "rotation", 0) or 0)) % 360,
                         "peak": int(img.max())}
     except Exception:  # noqa: BLE001 - any FFmpeg failure: OpenCV's checks report it
@@ -425,6 +432,10 @@ class FieldMotion:
         the woven frame (shared by the fields); error inf when not measured.  (The
         colour's own motion, not the image's: thin threads lose their colour to the
         subsampling, and what is left to see - the rock's markers - moves otherwise.)
+    colour_kept : str
+        Why the stream's format gives each field its own colour whatever the chroma
+        slope shows (:func:`field_colour_kept`: DV, colour on every line), "" when only
+        the content can tell.
     """
 
     n_frames: int
@@ -433,6 +444,7 @@ class FieldMotion:
     slope_err: float
     chroma_slope: float = 0.0
     chroma_slope_err: float = np.inf
+    colour_kept: str = ""
 
     @property
     def woven(self) -> bool:
@@ -455,16 +467,21 @@ class FieldMotion:
 
     @property
     def colour_per_field(self) -> bool:
-        """Each field has its own colour rows: the colour planes' rows move apart as the
-        luma's do (chroma slope nearer :attr:`slope` than 0, at 5 standard errors).
-        False - colour shared by the fields, the safe reading - when that is not shown."""
+        """Each field has its own colour rows: by the stream's format
+        (:attr:`colour_kept`), or the colour planes' rows move apart as the luma's do
+        (chroma slope nearer :attr:`slope` than 0, at 5 standard errors).  False -
+        colour shared by the fields, the safe reading - when that is not shown."""
+        if self.colour_kept:
+            return bool(self.woven)
         c = self.chroma_slope * np.sign(self.slope)
         return bool(self.woven and np.isfinite(self.chroma_slope_err)
                     and c >= 0.5 * abs(self.slope) and c >= 5.0 * self.chroma_slope_err)
 
     def describe(self) -> str:
         colour = ""
-        if self.woven:
+        if self.woven and self.colour_kept:
+            colour = f"; each field keeps its own colour ({self.colour_kept})"
+        elif self.woven:
             colour = (f"; its colour rows move with their fields (chroma {self.chroma_slope:+.2f}"
                       f" +- {self.chroma_slope_err:.2f}): each field keeps its own colour"
                       if self.colour_per_field else
@@ -507,6 +524,7 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
     except ImportError:
         return None
     rows = []
+    kept = ""
     try:
         with av.open(str(path)) as c:
             st = main_stream(c)
@@ -514,6 +532,8 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
             for i, fr in enumerate(c.decode(st)):
                 if i > n_frames:
                     break
+                if i == 0:
+                    kept = field_colour_kept(st.codec_context.name, fr.format)
                 g = fr.to_ndarray(format="gray").astype(np.float32)
                 h, w = g.shape
                 ch, cw = min(h // 2, 192), min(w, 384)
@@ -558,7 +578,7 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
     use = (step >= FIELD_MOTION_PX) & (step <= FIELD_MAX_SHIFT_PX)
     n_moving = int(use.sum())
     if n_moving < FIELD_MIN_MOVING:
-        return FieldMotion(len(p), n_moving, 0.0, np.inf)
+        return FieldMotion(len(p), n_moving, 0.0, np.inf, colour_kept=kept)
     q = p[use]
     slope, err = _shift_slope(q[:, 2:4], q[:, 0:2])
     # (colour planes have half the pixels each way: half the luma's motion limits)
@@ -567,7 +587,36 @@ def field_motion(path, n_frames: int = FIELD_CHECK_FRAMES) -> FieldMotion | None
            & (cstep <= 0.5 * FIELD_MAX_SHIFT_PX)]
     chroma = (_shift_slope(qc[:, 6:8], qc[:, 4:6]) if len(qc) >= FIELD_MIN_MOVING
               else (0.0, np.inf))
-    return FieldMotion(len(p), n_moving, slope, err, *chroma)
+    return FieldMotion(len(p), n_moving, slope, err, *chroma, colour_kept=kept)
+
+
+def field_colour_kept(codec_name: str, fmt) -> str:
+    """Why a stream's format gives each interlaced field its own colour, "" when it
+    does not say (4:2:0 coded from a woven frame may share it: :func:`field_motion`
+    then reads the content).
+
+    DV (``dvvideo``) is a camera's own recording: its colour is sampled from each
+    field's lines (NTSC 4:1:1 on every line, PAL 4:2:0 per field).  A pixel format
+    whose colour planes have every line (4:1:1, 4:2:2, 4:4:4) cannot share a colour
+    row between the fields.  What a codec's quantisation still mixes between the two
+    (rendered DV: the fields' markers 0.9-1.0 of the image's motion closer than their
+    luma) mixes both alike, and the fields' own disagreement measures it
+    (:func:`curltrack.track.results.field_motion_share`).
+
+    Parameters
+    ----------
+    codec_name : str
+        FFmpeg's codec name.
+    fmt : av.VideoFormat
+        A decoded frame's pixel format.
+    """
+    if codec_name == "dvvideo":
+        return "DV: each field's colour sampled from its own lines"
+    # (PyAV's ``is_chroma`` is the plane's horizontal subsampling shift: 0 for 4:4:4)
+    colour = [c for c in fmt.components if not (c.is_luma or c.is_alpha)]
+    if fmt.components[0].is_luma and colour and all(c.height == fmt.height for c in colour):
+        return f"{fmt.name}: colour on every line"
+    return ""
 
 
 def _colour_rows(fr, r0: int, c0: int, ch: int, cw: int):
@@ -724,7 +773,8 @@ def _scan_from_content(av_info: dict, fm: "FieldMotion | None") -> tuple[dict, s
         if not fm.woven:
             return av_info, "", ""
         return ({**av_info, "interlaced": True, "top_field_first": fm.order == "tff",
-                 "colour_per_field": fm.colour_per_field}, fm.describe(), "")
+                 "colour_per_field": fm.colour_per_field, "colour_kept": fm.colour_kept},
+                fm.describe(), "")
     flagged = "tff" if av_info["top_field_first"] else "bff"
     if fm.one_exposure:
         # two fields of one exposure timed half a frame apart would put every other
@@ -740,7 +790,8 @@ def _scan_from_content(av_info: dict, fm: "FieldMotion | None") -> tuple[dict, s
     elif not fm.colour_per_field:
         notes.append(f"flagged interlaced: {fm.describe()}")
     return ({**av_info, "top_field_first": fm.order == "tff",
-             "colour_per_field": fm.colour_per_field}, "", "; ".join(notes))
+             "colour_per_field": fm.colour_per_field, "colour_kept": fm.colour_kept}, "",
+            "; ".join(notes))
 
 
 @functools.lru_cache(maxsize=32)
@@ -860,7 +911,7 @@ def probe_video(path, fps_override: float | None = None, check_end: bool = True)
     tick, phase = _time_grid(str(path), *_file_stamp(path))
     extra = {k: av_info[k] for k in ("container", "codec_name", "interlaced",
                                      "top_field_first", "rotation_deg", "pixel_aspect",
-                                     "colour_per_field")
+                                     "colour_per_field", "colour_kept")
              if k in av_info}
     return VideoInfo(str(path), n, fps, w, h, codec, n / fps, decoder=decoder,
                      fields_from_content=from_content, content_note=content_note,

@@ -10,8 +10,8 @@ the README (``--from`` an earlier ``--json`` instead of measuring).
 One set-up per camera kind, drawn by :func:`curltrack.render.sweep.draw_setup` from a
 fixed seed (``--seed``; the set-ups are the same in every run), plus ``action-strong``
 (a radial lens with k1 forced to -0.35..-0.30), ``action-fisheye`` (the equidistant
-fisheye) and ``camcorder-reencoded`` (the camcorder's set-up written without its
-interlace flags).  Each is rendered with its truth, tracked with the rig written beside it - plus
+fisheye), ``camcorder-reencoded`` (the camcorder's set-up written without its
+interlace flags) and ``camcorder-dv`` (a DV camcorder's own file, ``.mov``).  Each is rendered with its truth, tracked with the rig written beside it - plus
 ``[camera].rolling_shutter_ms`` = the sensor's readout time for a rolling-shutter
 camera, as its user would give it - and scored against the truth **at each row's own
 time** ``t`` (a cubic spline through the truth: with a rolling shutter a row's ``t`` is
@@ -45,7 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 KINDS = ("ladder", "handheld", "camcorder", "phone", "action", "action-strong",
-         "action-fisheye", "camcorder-reencoded")
+         "action-fisheye", "camcorder-reencoded", "camcorder-dv")
 SEED = 20261124
 #: Set-ups drawn per kind until one renders (a phone set-up with variable frame timing
 #: failed the writer's last-frame check: the next draw of the kind is used then).
@@ -54,13 +54,14 @@ RENDER_ATTEMPTS = 3
 
 def draw(kind: str, seed: int, scale: float, attempt: int = 0):
     """The set-up of ``kind`` (the same for one seed and attempt)."""
+    from curltrack.render.sweep import KINDS as SWEEP_KINDS
     from curltrack.render.sweep import _lens_ok, draw_setup
 
     # (camcorder-reencoded: the camcorder's own set-up, only its file's flags lost)
     same = "camcorder" if kind == "camcorder-reencoded" else kind
     key = [seed, KINDS.index(same)] + ([attempt] if attempt else [])
     rng = np.random.default_rng(np.random.SeedSequence(key))
-    base = kind.split("-")[0]
+    base = kind if kind in SWEEP_KINDS else kind.split("-")[0]
     setup = draw_setup(rng, base, scale)
     cam = setup.config.camera
     if kind in ("action-strong", "action-fisheye"):
@@ -134,7 +135,7 @@ def bench_kind(kind: str, seed: int = SEED, scale: float = 0.5, out: Path | None
         tmp = tempfile.TemporaryDirectory()
         out = Path(tmp.name)
     out.mkdir(parents=True, exist_ok=True)
-    video = out / f"{kind}.mp4"
+    video = out / f"{kind}{'.mov' if kind == 'camcorder-dv' else '.mp4'}"
     for attempt in range(RENDER_ATTEMPTS):
         setup = draw(kind, seed, scale, attempt)
         summary = video.with_suffix(".summary.json")

@@ -92,7 +92,7 @@ def run(i: int, seed: int, n: int, scale: float, out: Path, track: bool,
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(n)[i])
     kind = None if random_kind else KINDS[i % len(KINDS)]
     setup = draw_setup(rng, kind, scale)
-    video = out / f"setup{i:02d}_{setup.kind}.mp4"
+    video = out / f"setup{i:02d}_{setup.kind}{setup.suffix}"
     t0 = time.process_time()
     row = dict(i=i, **setup.summary)
     try:

@@ -391,3 +391,17 @@ def test_millisecond_timestamps_are_read_to_the_frame_rate():
                     assert err.max() <= 1e-3 + 1e-9, (what, decoder, err.max())
                 else:
                     assert err.max() < 1e-6, (what, decoder, err.max())
+
+
+def test_a_format_that_keeps_each_fields_colour_says_so():
+    """DV, and pixel formats with colour on every line (4:1:1, 4:2:2, 4:4:4), give each
+    interlaced field its own colour by construction - the content check, which reads
+    4:2:0 planes only, is not asked; 4:2:0 and grey say nothing."""
+    av = pytest.importorskip("av")
+    from curltrack.video import field_colour_kept
+
+    for codec, fmt, kept in (("h264", "yuv411p", True), ("prores", "yuv422p10le", True),
+                             ("h264", "yuv444p", True), ("h264", "yuv420p", False),
+                             ("mpeg2video", "nv12", False), ("dvvideo", "yuv420p", True),
+                             ("h264", "gray", False)):
+        assert bool(field_colour_kept(codec, av.VideoFormat(fmt, 720, 480))) is kept, (codec, fmt)

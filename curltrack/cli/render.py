@@ -103,7 +103,9 @@ def render(
     white_balance: float = typer.Option(0.0, "--white-balance", help="RMS relative drift "
                                         "of the red/blue gains (auto white balance)."),
     codec: str = typer.Option("mp4v", "--codec", help="mp4v (OpenCV) | mpeg4 | h264 | hevc "
-                              "(PyAV)."),
+                              "(PyAV) | dv (DV25 in QuickTime: --width 720 --height 480 "
+                              "--fps 29.97 or 576 / 25, --scan interlaced --field-order "
+                              "bff)."),
     bitrate: Optional[float] = typer.Option(None, "--bitrate", help="Target bitrate (bit/s; "
                                             "PyAV codecs)."),
     rotation: int = typer.Option(0, "--rotation", help="Display rotation tag (deg: 0, 90, "

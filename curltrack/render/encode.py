@@ -1,6 +1,6 @@
 """Writing the rendered frames: OpenCV's mp4v, or H.264 / HEVC / MPEG-4 through PyAV with
 a target bitrate, interlace flags, a pixel aspect, a rotation tag and the true (possibly
-irregular) timestamps of every frame."""
+irregular) timestamps of every frame, or DV as a camcorder records it."""
 
 from __future__ import annotations
 
@@ -15,7 +15,13 @@ from ..errors import ParameterError, VideoError
 from .sensor import TIME_BASE
 
 FOURCC = "mp4v"  # the H.264 encoders are absent from the opencv-python wheels
-CODECS = {"mp4v": None, "mpeg4": "mpeg4", "h264": "libx264", "hevc": "libx265"}
+CODECS = {"mp4v": None, "mpeg4": "mpeg4", "h264": "libx264", "hevc": "libx265",
+          "dv": "dvvideo"}
+#: DV25's two formats: (width, height) -> (frame rate, FFmpeg pixel format).  NTSC DV
+#: keeps every line's colour (4:1:1: a quarter of the columns), PAL DV subsamples it
+#: per field (4:2:0, each field's own rows); both are written bottom field first.
+DV_FORMATS = {(720, 480): (Fraction(30000, 1001), "yuv411p"),
+              (720, 576): (Fraction(25), "yuv420p")}
 #: How a flagged interlaced stream's 4:2:0 colour was made (:class:`EncodingConfig`)
 FIELD_COLOURS = ("shared", "own", "top")
 #: The same frames must give the same file (a rendered clip is a test's input: the
@@ -37,11 +43,14 @@ class EncodingConfig:
 
     Parameters
     ----------
-    codec : {"mp4v", "mpeg4", "h264", "hevc"}
+    codec : {"mp4v", "mpeg4", "h264", "hevc", "dv"}
         ``mp4v`` (default): OpenCV's MPEG-4 part 2 writer, regular timestamps only
         (interlaced frames are then coded as progressive woven frames, unflagged).
         The others through PyAV (FFmpeg): ``mpeg4`` (the same codec), ``h264``
-        (libx264), ``hevc`` (libx265).
+        (libx264), ``hevc`` (libx265), ``dv`` (DV25 in a QuickTime file, as a DV
+        camcorder's footage is captured: 720x480 at 29.97 fps or 720x576 at 25 fps,
+        interlaced bottom field first, 25 Mbit/s intra-frame; no bitrate or rotation
+        tag; the file's pixel aspect is DV's own, 8:9 or 16:15 - not the camera's).
     bitrate_bps : float, optional
         Target bitrate (bit/s), e.g. 1.2e6 for a camcorder's H.264; default: the
         encoder's quality-based default (PyAV codecs only).
@@ -90,6 +99,9 @@ class EncodingConfig:
         if self.codec == "mp4v" and (self.bitrate_bps or self.rotation_deg):
             raise ParameterError("a bitrate or rotation tag needs a PyAV codec (mpeg4, "
                                  "h264, hevc), not OpenCV's mp4v", where="render.encoding")
+        if self.codec == "dv" and (self.bitrate_bps or self.rotation_deg):
+            raise ParameterError("DV has a fixed bitrate (25 Mbit/s) and no rotation tag",
+                                 where="render.encoding")
 
 
 def frame_rate(fps: float) -> Fraction:
@@ -176,12 +188,12 @@ class _AvWriter:
 
         self.path = path
         try:
-            self.c = av.open(str(path), "w", format="mp4")
+            self.c = av.open(str(path), "w", format="mov" if enc.codec == "dv" else "mp4")
             s = self.c.add_stream(CODECS[enc.codec], rate=frame_rate(fps))
         except Exception as exc:  # noqa: BLE001 - FFmpeg's errors are many kinds
             raise VideoError(f"cannot open a {enc.codec} writer: {exc}", path=path) from None
         s.width, s.height = int(size[0]), int(size[1])
-        s.pix_fmt = "yuv420p"
+        s.pix_fmt = DV_FORMATS[tuple(size)][1] if enc.codec == "dv" else "yuv420p"
         s.time_base = Fraction(1, TIME_BASE)
         s.codec_context.time_base = Fraction(1, TIME_BASE)
         if enc.bitrate_bps:
@@ -210,9 +222,14 @@ class _AvWriter:
             s.set_display_rotation(float(enc.rotation_deg))
         self.s, self.av = s, av
         self.field_colour = enc.field_colour if field_order is not None else "shared"
+        if enc.codec == "dv":  # (DV's chroma: per line, or per field - a camera's own)
+            self.field_colour = "own" if s.pix_fmt == "yuv420p" else "lines"
 
     def write(self, img, t):
-        if self.field_colour == "own" and img.shape[0] % 4 == 0 and img.shape[1] % 2 == 0:
+        if self.field_colour == "lines":
+            f = self.av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="bgr24") \
+                .reformat(format=self.s.pix_fmt)
+        elif self.field_colour == "own" and img.shape[0] % 4 == 0 and img.shape[1] % 2 == 0:
             f = self.av.VideoFrame.from_ndarray(interlaced_i420(img), format="yuv420p")
         elif self.field_colour == "top" and img.shape[0] % 2 == 0 and img.shape[1] % 2 == 0:
             f = self.av.VideoFrame.from_ndarray(top_field_colour_i420(img), format="yuv420p")
@@ -240,4 +257,11 @@ def open_writer(path, fps: float, size, enc: EncodingConfig | None = None,
     enc = enc or EncodingConfig()
     if enc.codec == "mp4v":
         return _CvWriter(path, fps, size)
+    if enc.codec == "dv":
+        fmt = DV_FORMATS.get(tuple(int(v) for v in size))
+        if fmt is None or abs(float(fmt[0]) - fps) > 1e-3 or field_order != "bff":
+            raise ParameterError(
+                f"DV is 720x480 at 29.97 fps or 720x576 at 25 fps, interlaced bottom field "
+                f"first: not {size[0]}x{size[1]} at {fps:.5g} fps, "
+                f"{field_order or 'progressive'}", where="render.encoding.codec")
     return _AvWriter(path, fps, size, enc, field_order, pixel_aspect)

@@ -25,6 +25,12 @@ Camera kinds (each artefact's range from what such cameras do):
     shared by the fields as a transcode leaves it (each colour row both fields' mean, or
     the top field's line alone) or each field's own as the camera's file, H.264 at
     1.5-4 Mbit/s; on a ladder, a pole or handheld.
+``camcorder-dv``
+    The camcorder's own file, as a DV camera's footage is captured (the paper's "small
+    digital video camera"): DV25 in a QuickTime file, NTSC (720x480, 29.97 fps, 4:1:1:
+    every line its own colour) or PAL (720x576, 25 fps, 4:2:0 per field), interlaced
+    bottom field first, 25 Mbit/s intra-frame, the file's pixel aspect DV's own (8:9,
+    16:15) whatever the camera's; on a ladder, a pole or handheld.  No low bitrate.
 
 On top, each at random: specular lamp glare, a person's shadow, a broom over the rock,
 auto exposure / white balance, a low bitrate (a quarter of the kind's).
@@ -46,7 +52,7 @@ from .encode import EncodingConfig
 from .motion import CameraConfig
 from .sensor import SensorConfig
 
-KINDS = ("camcorder", "phone", "action", "ladder", "handheld", "camcorder-pal")
+KINDS = ("camcorder", "phone", "action", "ladder", "handheld", "camcorder-pal", "camcorder-dv")
 
 
 @dataclass
@@ -59,6 +65,11 @@ class Setup:
     shot: Series
     seed: int
     summary: dict = field(default_factory=dict)
+
+    @property
+    def suffix(self) -> str:
+        """The video file's extension: ``.mov`` for DV (QuickTime), else ``.mp4``."""
+        return ".mov" if self.config.encoding.codec == "dv" else ".mp4"
 
 
 def draw_shot(rng: np.random.Generator, fps: float = 240.0) -> Series:
@@ -130,6 +141,15 @@ def draw_setup(rng: np.random.Generator, kind: str | None = None,
         bitrate = u(1.5e6, 4.0e6)
         codec = "h264"
         on["field_colour"] = str(rng.choice(["shared", "top", "own"]))
+    elif kind == "camcorder-dv":
+        motion = str(rng.choice(["ladder", "pole", "handheld"]))
+        pal = u() < 0.5
+        cam = CameraConfig(motion=motion, pixel_aspect=59 / 54 if pal else 10 / 11,
+                           k1=u(-0.08, -0.02))
+        base = dict(width=720, height=576 if pal else 480, fps=25.0 if pal else 30000 / 1001,
+                    camera=cam, sensor=SensorConfig(scan="interlaced", field_order="bff",
+                                                    chroma="420" if pal else "411"))
+        bitrate, codec = None, "dv"
     elif kind == "phone":
         fps = float(rng.choice([30.0, 60.0]))
         motion = str(rng.choice(["handheld", "pole"]))
@@ -173,7 +193,7 @@ def draw_setup(rng: np.random.Generator, kind: str | None = None,
     if u() < 0.4:
         sen = replace(sen, auto_exposure=u(0.03, 0.12), white_balance=u(0.02, 0.08))
         on["auto_exposure"] = True
-    if u() < 0.3:
+    if u() < 0.3 and bitrate is not None:
         bitrate /= 4
         on["low_bitrate"] = True
     extra = {}
@@ -194,7 +214,9 @@ def draw_setup(rng: np.random.Generator, kind: str | None = None,
                    fps=round(cfg.fps or 30.0, 3), motion=cam.motion,
                    lens=f"{cam.lens} k1={cam.k1:.2f} k2={cam.k2:.2f}",
                    scan=sen.scan, readout_ms=round(1e3 * sen.readout_s, 1),
-                   vfr=sen.frame_jitter_s > 0, codec=f"{codec} {bitrate / 1e6:.2g} Mb/s"
-                   + ("" if sen.scan != "interlaced" else f", {enc.field_colour} colour"),
+                   vfr=sen.frame_jitter_s > 0,
+                   codec=(f"{codec} {bitrate / 1e6:.2g} Mb/s" if bitrate else f"{codec} 25 Mb/s")
+                   + ("" if sen.scan != "interlaced" or codec == "dv"
+                      else f", {enc.field_colour} colour"),
                    artefacts=",".join(k for k, v in on.items() if v) or "-")
     return Setup(kind, cfg, draw_shot(rng), int(rng.integers(2**31)), summary)

@@ -385,6 +385,27 @@ def colour_mixing_sigma(t, shot, ok, dt_fields: float,
     return 0.5 * speed * dt_fields / np.sqrt(2.0), 0.5 * omega * dt_fields
 
 
+def colour_mixing_share(share, share_sigma) -> float:
+    """The share (0-1) of the image's motion between two fields that their colour
+    mixes, from the fields' markers (:func:`field_motion_share`: their difference's
+    share of that motion, negative where they come closer than their luma): its
+    largest diagonal term, 2 sigma out, at most 1; 1 where it is not measured (a
+    camera that does not move the image).
+
+    Fields read from colour they share come closer by that share.  Mixed alike (a
+    conversion that averages both fields' lines), each is pulled by half of it and
+    half their difference puts both back; mixed one-sidedly (one field's lines for
+    both), both stay off alike by half of it, which their difference cannot show.
+    Which of the two was done the video does not say: :func:`colour_mixing_sigma`
+    times this share is the error's scale (a fields' colour of their own reads 0: a
+    PAL clip rendered so, read as shared, e/sigma 0.26 with the whole travel).
+    """
+    d, e = np.abs(np.diag(share)), np.diag(share_sigma)
+    if not np.all(np.isfinite(e)):
+        return 1.0
+    return float(min(1.0, np.max(d + 2.0 * e)))
+
+
 #: Farthest (in field periods) the other field's two rows a row is judged against in
 #: :func:`fields_disagree` may be from it (a frame's two fields, or across a lost one).
 FIELD_PAIR_SPAN = 6.0
@@ -834,28 +855,42 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         half = np.where(fld == 0, 0.5, np.where(fld == 1, -0.5, 0.0))[:, None]
         v_image = image_velocity(records, t, fld, ok)
         motion = v_image * (0.5 / info.fps)
+    # how much of the image's motion between the fields their markers' colour mixes
+    # (0: none, 1: both fields see one colour), as far as it may be one-sided - the
+    # share of colour_mixing_sigma that sigma carries (see colour_mixing_share)
+    mixing = 0.0
+    colour_kept = getattr(info, "colour_kept", "")
     if shared_colour:
         # a stream coded progressive shares its 4:2:0 colour between the two fields: the
         # colours each field is measured by are the two exposures' mean, and pull both
         # towards it alike - their mean is free of it.  The pull follows the image's
         # motion between the fields (a rendered clip: 20 mm at release, 5 mm at 3 s), so
         # it is taken off as it changes, before the origin is fitted to the first rows
+        mixing = colour_mixing_share(*field_motion_share(t, centre, fld, ok, motion))
         pull_xy = field_offset_along(t, centre, fld, ok, motion=motion)
         centre = centre + half * pull_xy
     elif (fld >= 0).any():
         # fields read with their own colour can still differ by a share of the image's
         # motion between them (rendered PAL camcorders read as own colour: -0.3 to -0.5
         # of it, +-0.03; a converter that point-sampled the top field's colour reads
-        # so too): where that share is sure (5 sigma), each field takes half of it off
-        # (three such clips: 1.69 -> 1.20, 2.79 -> 2.09, 3.21 -> 2.06 mm per coordinate;
-        # the worst, a first row 11.6 mm off at 5.1 sigma, 8.2 mm)
+        # so too; rendered DV: 0.9-1.0, its quantised colour): where that share is sure
+        # (5 sigma), each field takes half of it off (three such clips: 1.69 -> 1.20,
+        # 2.79 -> 2.09, 3.21 -> 2.06 mm per coordinate; the worst, a first row 11.6 mm
+        # off at 5.1 sigma, 8.2 mm)
         share, share_sigma = field_motion_share(t, centre, fld, ok, motion)
         if np.all(np.abs(np.diag(share)) > FIELD_SHARE_Z * np.diag(share_sigma)):
             centre = centre + half * (np.where(np.isfinite(motion), motion, 0.0) @ share.T)
+            if not colour_kept:
+                # ... which a colour shared one-sidedly (one field's lines for both)
+                # leaves in both alike, where their disagreement cannot show it: a
+                # rendered PAL stream of shared colour read as own, 4.5 mm off under a
+                # 1.8 mm sigma (e/sigma 2.45)
+                mixing = colour_mixing_share(share, share_sigma)
             warnings.append(
                 f"{path}: the two fields differ by {-np.mean(np.diag(share)):.2f} of the "
-                "image's motion between them, as fields that share their colour do: each "
-                "was moved by half of it")
+                "image's motion between them, as fields whose colour "
+                + (f"the codec mixed alike do ({colour_kept})" if colour_kept
+                   else "is shared do") + ": each was moved by half of it")
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
     lever = _layout_lever(rig)
@@ -950,31 +985,37 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                 "share their colour do: each was moved by half of it, as it changed over "
                 "the shot")
             off = np.zeros(3)
-            # (what is left is not in their disagreement: colour_mixing_sigma)
-            off_xy, off_theta = colour_mixing_sigma(t, shot, ok, 0.5 / info.fps,
-                                                    image_speed(t, v_image))
-            # ... and it follows the rock's speed, slowly: over the origin's first rows,
-            # where the rock is fastest, it is one error, which the origin passes to
-            # every row (a rendered 1.5 Mbit/s camcorder: every row ~4.6 mm off in y,
-            # late rows under a 0.9 mm sigma)
-            idx_ok = np.flatnonzero(ok & np.isfinite(off_xy))
-            if idx_ok.size >= 2:
-                m_w, p0 = origin_weights(t[idx_ok], row_weights(sigma_own[idx_ok]))
-                first = idx_ok[:m_w]
-                origin_pull = abs(float(p0 @ off_xy[first]))
-                origin_shared = float(np.hypot(origin_shared, origin_pull))
-                sigma_xy = np.hypot(sigma_xy, origin_pull)
-            warnings.append(
-                f"{path}: each field's colour mixes both exposures (colour subsampled across "
-                "the woven frame): the markers locate the rock only within its travel "
-                f"between the fields (up to {1e3 * np.nanmax(off_xy) * 2 * np.sqrt(2):.0f} mm; "
-                "half of it is included in sigma_xy / sigma_theta, which is wide where the "
-                "conversion averaged the fields' colour - and so is the origin's share of "
-                "it, which every row carries): the camera's original file measures better")
         else:
             off = field_offset(t, np.column_stack([shot["x"], shot["y"], shot["theta"]]),
                                fld, ok)
             off_xy, off_theta = 0.5 * np.hypot(off[0], off[1]) / np.sqrt(2), 0.5 * abs(off[2])
+        if mixing > 0:
+            # (what is left is not in their disagreement: colour_mixing_sigma, the share
+            # of it the fields' own disagreement shows)
+            mix_xy, mix_theta = (mixing * v for v in colour_mixing_sigma(
+                t, shot, ok, 0.5 / info.fps, image_speed(t, v_image)))
+            off_xy, off_theta = np.hypot(off_xy, mix_xy), np.hypot(off_theta, mix_theta)
+            # ... and it follows the rock's speed, slowly: over the origin's first rows,
+            # where the rock is fastest, it is one error, which the origin passes to
+            # every row (a rendered 1.5 Mbit/s camcorder: every row ~4.6 mm off in y,
+            # late rows under a 0.9 mm sigma)
+            idx_ok = np.flatnonzero(ok & np.isfinite(mix_xy))
+            if idx_ok.size >= 2:
+                m_w, p0 = origin_weights(t[idx_ok], row_weights(sigma_own[idx_ok]))
+                first = idx_ok[:m_w]
+                origin_pull = abs(float(p0 @ mix_xy[first]))
+                origin_shared = float(np.hypot(origin_shared, origin_pull))
+                sigma_xy = np.hypot(sigma_xy, origin_pull)
+            warnings.append(
+                f"{path}: each field's colour mixes both exposures ("
+                + ("colour subsampled across the woven frame" if shared_colour else
+                   "the fields' markers differ by a share of the image's motion") +
+                f", {mixing:.2f} of it at most): the markers locate the rock only within "
+                f"that share of its travel between the fields (up to "
+                f"{1e3 * np.nanmax(mix_xy) * 2 * np.sqrt(2):.0f} mm; half of it is included "
+                "in sigma_xy / sigma_theta, which is wide where the conversion averaged the "
+                "fields' colour - and so is the origin's share of it, which every row "
+                "carries): the camera's original file measures better")
         sigma_xy = np.hypot(sigma_xy, off_xy)
         sigma_theta = np.hypot(sigma_theta, off_theta)
         if np.hypot(off[0], off[1]) > 2e-3 or abs(off[2]) > np.radians(0.5):

@@ -358,6 +358,16 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
         h = np.einsum("ij,ji->i", Aw, np.linalg.pinv(Aw))
         u = res / np.maximum(1.0 - h, 1e-3)[:, None] if A.shape[0] > A.shape[1] else 0 * res
         stat = float(np.sqrt(np.mean(np.sum(p0[:, None] ** 2 * u ** 2, axis=0))))
+        if extrapolated and len(res) >= 12:
+            # ... which takes the rows' errors as independent: extrapolated back from
+            # rows whose errors persist (a tracker's: rho 0.4-0.6), under the residuals'
+            # own AR(1) correlation where that is larger (simulated paths first measured
+            # 0.1-0.6 s after release under AR(1) noise of rho 0-0.8: the origin's error
+            # over its sigma RMS 1.34 -> 1.00; white noise 0.89 -> 0.84)
+            res_u = res * sw[:, None]
+            rho_w, corr = _row_correlation(res_u, A[:, 1])
+            stat = max(stat, float(np.sqrt(_correlated_variance(res_u, p0 / sw, corr, rho_w,
+                                                                 A.shape[1]))))
     stat = max(stat, floor, scatter)
     if not extrapolated:
         return float(stat)
@@ -366,15 +376,61 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
         # the path's cubic term, bounded from the fit's own deceleration and speed (a
         # slow rock on keen ice decelerates faster and changes its deceleration faster:
         # a 640x360 handheld draw first measured 1 s after release was 22 mm off its
-        # extrapolated origin, against ~3 mm from a fixed bound), times what a cubic
-        # does to this fit's intercept
+        # extrapolated origin, against ~3 mm from a fixed bound) - or measured over the
+        # rows after, where that is less (the bound is |phi| <= 1's: the sweep's draws,
+        # phi -0.1 near their start, had origins 0.5 mm off under 2-8 mm) - times what a
+        # cubic does to this fit's intercept
         accel = 2.0 * np.linalg.norm(coef[2])
         speed = np.linalg.norm(coef[1] + 2.0 * coef[2] * float(np.mean(tk)))
         cubic = max(min_cubic, MAX_ABS_PHI * accel ** 2 / max(speed, 0.05) / 6.0)
+        measured = path_cubic(t, q, coef, weights)
+        if measured is not None:
+            cubic = max(min_cubic, min(cubic, measured))
         model = cubic * abs(float(p0 @ tk ** 3))
     else:
         model = 0.5 * max_deceleration_m_s2 * float(t[0]) * (float(t[0]) + float(np.ptp(tk)))
     return float(np.hypot(stat, model))
+
+
+#: Span (s, from the first row) over which :func:`path_cubic` measures the path's cubic
+#: term, ended before :data:`ORIGIN_CHECK_STOP_FRACTION` of the time to stop.
+CUBIC_WINDOW_S = 3.0 * WINDOW_S
+#: Fewest rows :func:`path_cubic` fits a cubic to.
+CUBIC_MIN_ROWS = 16
+
+
+def path_cubic(t: np.ndarray, q: np.ndarray, coef: np.ndarray, weights=None) -> float | None:
+    """The size of the path's cubic coefficient (m/s^3 or rad/s^3; jerk / 6) near its
+    start, measured: a cubic through the rows of :data:`CUBIC_WINDOW_S` after the first
+    (ended before :data:`ORIGIN_CHECK_STOP_FRACTION` of the time to stop that the
+    initial fit's ``coef`` - 1, t, t^2 terms - gives), the root of its squared norm
+    plus its variance (under the residuals' own AR(1) correlation from row to row);
+    None where no such window has :data:`CUBIC_MIN_ROWS` rows and half its span.
+
+    A deceleration that changes with speed (a = k u^phi) makes the path's cubic grow
+    as the rock slows (phi a^2 / u, up to 1 / u^2 for phi = -1): the window after the
+    first row measures at least the cubic the extrapolation back to t = 0 meets.
+    """
+    t = np.asarray(t, float)
+    q = np.asarray(q, float).reshape(len(t), -1)
+    v, a = coef[1], 2.0 * coef[2]
+    speed = max(float(np.linalg.norm(v)), 0.05)
+    decel = -float(np.sum(a * v)) / speed
+    t_stop = speed / decel if decel > 0 else np.inf
+    end = min(t[0] + CUBIC_WINDOW_S, t[0] + ORIGIN_CHECK_STOP_FRACTION * t_stop)
+    sel = (t >= t[0]) & (t <= end) & np.isfinite(q).all(axis=1)
+    n = int(np.count_nonzero(sel))
+    if n < CUBIC_MIN_ROWS or end - t[0] < 0.5 * CUBIC_WINDOW_S:
+        return None
+    A = np.vander(t[sel] - t[0], 4, increasing=True)  # (the cubic term is the same)
+    sw = np.ones(n) if weights is None else np.sqrt(np.asarray(weights, float)[sel])
+    Aw = A * sw[:, None]
+    c, *_ = np.linalg.lstsq(Aw, q[sel] * sw[:, None], rcond=None)
+    res = (q[sel] - A @ c) * sw[:, None]
+    rho = _row_correlation(res, t[sel])[0]
+    s2 = np.sum(res ** 2, axis=0) / (n - 4) * (1.0 + rho) / (1.0 - rho)
+    var = s2 * float(np.linalg.pinv(Aw.T @ Aw)[3, 3])
+    return float(np.sqrt(np.sum(c[3] ** 2 + var)))
 
 
 #: The origin's check (:func:`origin_check`): the initial quadratic's value at t = 0

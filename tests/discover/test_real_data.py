@@ -279,7 +279,9 @@ def test_a_named_effect_is_not_called_the_instruments_persisting_noise():
     which the warning had called "errors of the instrument that persist" beside a verdict
     that rightly named the effect (the demo's tracked patch: ~7e4x).  Judged again on the
     named finding's residuals: the warning says the effect accounts for it, or gives
-    what the finding leaves."""
+    what the finding leaves.  (A named effect whose baseline residuals stay under the
+    warning's level - a late curl at 5x, seed 8131079568969598537 - gives no warning
+    and is not one of the two judged.)"""
     import sys
     from pathlib import Path
 
@@ -290,9 +292,9 @@ def test_a_named_effect_is_not_called_the_instruments_persisting_noise():
 
     seed = _entropy()
     rng = np.random.default_rng(seed)
-    named = 0
-    for _ in range(6):
-        if named == 2:
+    judged = 0
+    for _ in range(8):
+        if judged == 2:
             break
         effect = str(rng.choice(["pick", "friction_patch", "late_curl"]))
         shots, truth = make_case(effect, class_strength(effect, "white", 16.0), rng)
@@ -300,16 +302,18 @@ def test_a_named_effect_is_not_called_the_instruments_persisting_noise():
                        seed=int(rng.integers(1 << 30)))
         if rep["verdict"] != effect:
             continue
-        named += 1
         infl = max(sh[c]["inflation"] for sh in rep["noise"] for c in ("x", "y", "theta")
                    if c in sh and sh[c].get("inflation") is not None)
-        assert infl > PERSISTENT_NOISE_WARN, (seed, effect, infl)   # (it would have warned)
-        # (judged again: accounted for, or what the finding leaves beside it)
         noise = [w for w in rep["warnings"] if "low-frequency noise" in w]
+        if infl <= PERSISTENT_NOISE_WARN:   # (nothing to warn of)
+            assert not noise, (seed, effect, infl, noise)
+            continue
+        judged += 1
+        # (judged again: accounted for, or what the finding leaves beside it)
         assert noise and all("the named effect accounts for what persisted" in w
                              or f"with {effect} fitted, still" in w for w in noise), (
             seed, effect, rep["warnings"])
-    assert named == 2, f"seed {seed}: named in {named} of 6"
+    assert judged == 2, f"seed {seed}: named with a warning's residuals in {judged} of 8"
 
 
 def test_a_peer_simulators_physics_is_not_called_none(tmp_path):

@@ -376,3 +376,46 @@ def test_rolling_shutter_row_is_the_global_shutter_image_at_that_rows_time():
         moved = max(moved, np.abs(at_t[v] - ref[v]).mean())
     assert moved > 3 * worst, f"seed {seed}: rows at t and t + tau hardly differ ({moved:.2f})"
     assert worst < 0.8, f"seed {seed}: a rolling-shutter row {worst:.2f} levels off its time"
+
+
+def test_dv_is_written_as_a_camcorder_records_it(tmp_path):
+    """``codec="dv"``: DV25 in QuickTime, NTSC 4:1:1 or PAL 4:2:0 (drawn), interlaced
+    bottom field first, each field's colour on its own lines - a marker of one field's
+    colour decoded in that field's rows; other sizes, rates, a field order, a bitrate or
+    a rotation tag are refused naming the field."""
+    av = pytest.importorskip("av")
+    from curltrack.render.encode import open_writer
+
+    seed = _seed()
+    rng = np.random.default_rng(seed)
+    pal = bool(rng.random() < 0.5)
+    W, H, fps = (720, 576, 25.0) if pal else (720, 480, 30000 / 1001)
+    path = tmp_path / "dv.mov"
+    w = open_writer(path, fps, (W, H), EncodingConfig(codec="dv"), field_order="bff")
+    x0 = int(rng.integers(100, 500))
+    for k in range(3):
+        img = np.full((H, W, 3), 200, np.uint8)
+        img[1::2][100:130, x0:x0 + 40] = (0, 0, 255)          # red in the bottom field
+        img[0::2][100:130, x0 + 80:x0 + 120] = (255, 0, 0)    # blue in the top field
+        w.write(img, k / fps)
+    w.close()
+    with av.open(str(path)) as c:
+        st = c.streams.video[0]
+        fr = next(c.decode(st))
+        assert st.codec_context.name == "dvvideo" and fr.interlaced_frame, seed
+        assert fr.format.name == ("yuv420p" if pal else "yuv411p"), (seed, fr.format.name)
+        bgr = fr.to_ndarray(format="bgr24").astype(float)
+    red, blue = bgr[..., 2] - bgr[..., 1], bgr[..., 0] - bgr[..., 1]
+    xx = np.arange(W)
+    for parity, colour, centre in ((1, red, x0 + 19.5), (0, blue, x0 + 99.5)):
+        m = np.clip(colour[parity::2][95:135] - 60, 0, None).sum(axis=0)
+        assert abs((m * xx).sum() / m.sum() - centre) < 3, (seed, parity)
+        other = np.clip(colour[1 - parity::2][95:135] - 60, 0, None).sum()
+        assert other < 0.2 * m.sum(), (seed, parity, other / m.sum())
+    for size, rate, order, enc in (((720, 480), 25.0, "bff", {}), ((640, 480), 30000 / 1001,
+                                   "bff", {}), ((720, 480), 30000 / 1001, "tff", {}),
+                                   ((720, 480), 30000 / 1001, "bff", {"bitrate_bps": 1e6})):
+        with pytest.raises(ParameterError, match="render.encoding"):
+            cfg = EncodingConfig(codec="dv", **enc)
+            cfg.validate()
+            open_writer(tmp_path / "bad.mov", rate, size, cfg, field_order=order)

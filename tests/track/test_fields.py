@@ -262,7 +262,8 @@ def test_interlaced_footage_is_measured_as_its_fields_show_whatever_its_flags(tm
     the flagged file; FFmpeg's shared colour 0.5-2.8 mm once the fields' mutual pull is
     taken off; OpenCV's 6-13 mm (one field's colour is the other exposure's: both come
     out half the travel between them off).  The two shared kinds are not told apart, so
-    sigma_xy takes half that travel for both: honest, and wide for FFmpeg's."""
+    sigma_xy takes half that travel, times the share of it by which the fields' markers
+    come closer than their luma, for both: honest, and wide for FFmpeg's."""
     from curltrack.track import track_video
     from curltrack.video import probe_video
 
@@ -296,8 +297,12 @@ def test_interlaced_footage_is_measured_as_its_fields_show_whatever_its_flags(tm
     warned = {"none": "flagged progressive", "right": None,
               "reversed": f"measured {order}"}[flags]
     assert warned is None or any(warned in w for w in series.warnings), what
-    assert any("colour mixes both exposures" in w for w in series.warnings) is read_shared, \
-        what
+    # shared colour read as such always has its mixing in sigma; colour read as the
+    # fields' own only where their markers still show a sure share of the motion
+    mixing = any("colour mixes both exposures" in w for w in series.warnings)
+    assert mixing or not read_shared, what
+    assert read_shared or not mixing or any(
+        "of the image's motion between them" in w for w in series.warnings), what
     tr = truth.data.iloc[2 * d.frame.to_numpy() + d.field.to_numpy()]
     ok = d.ok.to_numpy() == 1
     err = np.hypot(d.x.to_numpy() - tr.x.to_numpy(), d.y.to_numpy() - tr.y.to_numpy())[ok]
@@ -309,8 +314,12 @@ def test_interlaced_footage_is_measured_as_its_fields_show_whatever_its_flags(tm
     # (FFmpeg's shared colour: 0.06-0.36 - sigma wide, as it must be for OpenCV's, which
     # is half the fields' travel: a ladder's, the rock's own, can leave the markers less
     # off than that - CI seed 1965954739: 2.0 mm under a 4.7 mm sigma, 0.30-0.33)
-    assert (0.2 if colour == "opencv" else 0.4 if not read_shared else 0.02) < zr < 1.6, \
-        f"{what}: error/sigma RMS {zr:.2f}"
+    # (own colour whose fields' markers still come closer than their luma by a sure share
+    # of the motion - x264's quantisation mixing their colour, or shared colour misread -
+    # carries that share of the travel, which it cannot tell from a one-sided mixing:
+    # wide, as shared colour's - a hand-held own-colour draw, 0.20)
+    low = 0.2 if colour == "opencv" else 0.4 if not (read_shared or mixing) else 0.02
+    assert low < zr < 1.6, f"{what}: error/sigma RMS {zr:.2f}"
 
 
 def test_a_progressive_picture_flagged_interlaced_is_measured_as_whole_frames(tmp_path):
@@ -535,3 +544,85 @@ def test_the_fields_share_of_the_image_motion_and_its_sigma():
             assert np.all(np.abs(np.diag(got)) > FIELD_SHARE_Z * np.diag(sig)), (
                 seed, k, share, f_hz, np.diag(got), np.diag(sig))
     assert flagged == 0, (seed, flagged)
+
+
+def test_colour_read_as_the_fields_own_but_shared_is_still_in_sigma(tmp_path, monkeypatch):
+    """Colour shared by the fields (FFmpeg's mean or OpenCV's top-field lines) that the
+    content check reads as each field's own - it can (rendered PAL clips read so: a
+    4.5 mm error under a 1.8 mm sigma, e/sigma 2.45).  The fields' markers then come
+    closer than their luma by a sure share of the image's motion: each field is moved by
+    half of it, and sigma carries the share of the travel a one-sided colour would
+    leave in both - no row beyond 5 sigma, error/sigma RMS under 1.6."""
+    from curltrack.track import track_video
+    from curltrack.video import FieldMotion
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    colour = str(rng.choice(["ffmpeg", "opencv"]))
+    truth, video, motion = woven_draw(tmp_path, rng, "misread.mp4",
+                                      shared_colour={"ffmpeg": True, "opencv": "top"}[colour])
+    # (the content check's verdict on this stream, forced: what is tested is what
+    # follows a wrong one)
+    monkeypatch.setattr(FieldMotion, "colour_per_field", property(lambda fm: fm.woven))
+    series = track_video(video, default_rig())
+    what = f"seed {seed}, {motion}, {colour} colour read as own"
+    d = series.data
+    tr = truth.data.iloc[2 * d.frame.to_numpy() + d.field.to_numpy()]
+    ok = d.ok.to_numpy() == 1
+    assert ok.mean() >= 0.6, f"{what}: ok {ok.mean():.2f}"
+    err = np.hypot(d.x.to_numpy() - tr.x.to_numpy(), d.y.to_numpy() - tr.y.to_numpy())[ok]
+    z = err / d.sigma_xy.to_numpy()[ok]
+    zr = np.sqrt(np.mean(z ** 2)) / np.sqrt(2)
+    assert z.max() < 5 and zr < 1.6, \
+        f"{what}: max {1e3 * err.max():.1f} mm, max error/sigma {z.max():.2f}, RMS {zr:.2f}"
+    assert any("colour mixes both exposures" in w for w in series.warnings), what
+
+
+def test_a_dv_camcorders_file_is_tracked_with_each_fields_own_colour(tmp_path):
+    """A DV camcorder's own file - the paper's "small digital video camera": DV25 in
+    QuickTime, NTSC (720x480, 4:1:1, every line its own colour) or PAL (720x576, 4:2:0
+    per field), bottom field first, drawn at random with the camera's motion.  Its
+    format keeps each field's colour (read so without the content check, which cannot
+    see 4:1:1 colour), so sigma carries no colour mixing: read as shared, the two
+    rendered clips measured 1.0 and 0.5 mm under a 4-5.5 mm sigma (e/sigma 0.19, 0.06);
+    read as their own, 0.84 and 0.79.  What DV's quantisation mixes between the fields
+    (their markers 0.9-1.0 of the image's motion closer than their luma) mixes both
+    alike, and half their difference takes it off."""
+    from curltrack.render import render_video
+    from curltrack.render.sweep import draw_setup
+    from curltrack.rig import load_rig
+    from curltrack.track import track_video
+    from curltrack.video import probe_video
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    setup = draw_setup(rng, "camcorder-dv")
+    # (the shot's first 2.2 s: enough rows for the sigma scale, half the render; no
+    # broom over the rock, whose hidden frames are refused as they must be)
+    shot = replace(setup.shot, data=setup.shot.data[setup.shot.data.t <= 2.2])
+    video = tmp_path / "dv.mov"
+    truth = render_video(shot, default_rig(), video, seed=setup.seed,
+                         config=replace(setup.config, stopped_tail_s=0.0, occlusion=False))
+    info = probe_video(video)
+    what = f"seed {seed}, {setup.summary}: {info.describe()}"
+    assert info.codec_name == "dvvideo" and info.interlaced and not info.top_field_first, what
+    assert info.colour_per_field and info.colour_kept.startswith("DV"), what
+    series = track_video(video, load_rig(video.with_suffix(".rig.toml")))
+    assert not any("colour mixes both exposures" in w for w in series.warnings), what
+    d = series.data
+    tr = truth.data.set_index(["frame", "field"]).loc[list(zip(d.frame, d.field))]
+    ok = d.ok.to_numpy() == 1
+    # (a pole camera that turns 136 deg/s loses the grid for a while, its shadow and
+    # spin blur refuse some more: seed 16 measured 62 % - the measured share is the
+    # sweep's to judge; what is judged here are the measured rows)
+    assert ok.mean() >= 0.5, f"{what}: ok {ok.mean():.2f}"
+    ex, ey = (d.x.to_numpy() - tr.x.to_numpy())[ok], (d.y.to_numpy() - tr.y.to_numpy())[ok]
+    err = np.hypot(ex, ey)
+    sig = d.sigma_xy.to_numpy()[ok]
+    zr = np.sqrt(np.mean(np.r_[ex / sig, ey / sig] ** 2))
+    # (the issue's 2 mm RMS, no row over 10 mm or 5 sigma; sigma neither a blanket nor
+    # a lie)
+    assert np.sqrt(np.mean(err ** 2)) < 2e-3 and err.max() < 0.01 and (err / sig).max() < 5, \
+        f"{what}: RMS {1e3 * np.sqrt(np.mean(err ** 2)):.2f} mm, max {1e3 * err.max():.2f} " \
+        f"mm, {(err / sig).max():.1f} sigma"
+    assert 0.4 < zr < 1.6, f"{what}: error/sigma RMS {zr:.2f}"
