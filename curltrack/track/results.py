@@ -859,6 +859,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # (0: none, 1: both fields see one colour), as far as it may be one-sided - the
     # share of colour_mixing_sigma that sigma carries (see colour_mixing_share)
     mixing = 0.0
+    moved_by_share = False   # (the fields' own colour, each moved by half a sure share)
     colour_kept = getattr(info, "colour_kept", "")
     if shared_colour:
         # a stream coded progressive shares its 4:2:0 colour between the two fields: the
@@ -880,6 +881,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         share, share_sigma = field_motion_share(t, centre, fld, ok, motion)
         if np.all(np.abs(np.diag(share)) > FIELD_SHARE_Z * np.diag(share_sigma)):
             centre = centre + half * (np.where(np.isfinite(motion), motion, 0.0) @ share.T)
+            moved_by_share = True
             if not colour_kept:
                 # ... which a colour shared one-sidedly (one field's lines for both)
                 # leaves in both alike, where their disagreement cannot show it: a
@@ -890,7 +892,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                 f"{path}: the two fields differ by {-np.mean(np.diag(share)):.2f} of the "
                 "image's motion between them, as fields whose colour "
                 + (f"the codec mixed alike do ({colour_kept})" if colour_kept
-                   else "is shared do") + ": each was moved by half of it")
+                   else "is shared do") + ": each was moved by half of it (and by half "
+                "their angles' difference)")
     # 1 sigma: markers (averaged over the layout) and the homography, scaled by k
     M = loop_info["n_markers"]
     lever = _layout_lever(rig)
@@ -974,9 +977,12 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     if any(r.field is not None for r in records):
         # the two fields disagree systematically (mis-registration, aliasing, chroma):
         # half their offset is an error of every row that the pixel noise does not show
-        if shared_colour:   # (as the positions above; theta is cumulative only here)
+        if shared_colour or moved_by_share:
+            # (as the positions above; theta is cumulative only here: a rendered DV clip's
+            # fields, their markers' colour mixed, 1.5 deg apart, theta 1.21 deg RMS)
             pull_th = field_offset_along(t, shot["theta"][:, None], fld, ok)[:, 0]
             shot["theta"] = shot["theta"] + half[:, 0] * pull_th
+        if shared_colour:
             moved = np.hypot(*pull_xy[fld >= 0].T)
             warnings.append(
                 f"{path}: the two fields disagree by {1e3 * np.median(moved):.1f} mm "
