@@ -301,8 +301,9 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
     The fit's own variance plus, when the first frame is after t = 0
     (``extrapolated``), a model term: the path's departure from a quadratic
     (``min_cubic``), or for a straight line through too few frames, the deceleration it
-    cannot see (``max_deceleration_m_s2``, m/s^2).  Infinite when fewer than two frames
-    are measured.  ``q`` (N, k) is k coordinates of one point (k = 2: x, y, their
+    cannot see (``max_deceleration_m_s2``, m/s^2); the cubic is measured on the rows
+    after (:func:`path_cubic`) where that is less than its bound.  Infinite when fewer
+    than two frames are measured.  ``q`` (N, k) is k coordinates of one point (k = 2: x, y, their
     variances averaged; k = 1 with the angle's ``min_scatter``, ``min_cubic`` and
     deceleration in radians: its origin theta0).
 
@@ -310,7 +311,9 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
     frame's own residual, leverage-corrected (HC3, r_i / (1 - h_ii): about the
     delete-one jackknife's variance): it needs no noise model, and a few early frames
     that the fit bends towards - they weigh most on its value at t = 0 - count with
-    the error they carry, not with the shot's average scatter.  ``noise`` (sigma, rho):
+    the error they carry, not with the shot's average scatter - and, extrapolated, at
+    least the variance under the residuals' own AR(1) correlation (errors that persist
+    from row to row, which an extrapolation multiplies).  ``noise`` (sigma, rho):
     instead, the intercept's variance under that AR(1) frame noise (of the whole
     series; optionally ``(sigma, rho, step_s)``: rho per ``step_s`` seconds, e.g. one
     interlaced field's step, twice the rows'), or under the window's own residuals'
