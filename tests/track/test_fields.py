@@ -201,8 +201,10 @@ def test_each_field_keeps_its_own_colour_where_it_was_sampled(tmp_path):
                 got = np.array([(wgt * yy).sum(), (wgt * xx).sum()]) / wgt.sum()
                 off = float(np.hypot(*(got - c)))
                 # (a disc of r px sampled on the field's own rows: its centroid within
-                # ~0.1-0.2 px; colour read as centred was 0.4-0.5 rows off per field)
-                assert off < 0.3, (f"seed {seed}, case {case} ({order}): field {f.field}'s "
+                # ~0.1-0.2 px; colour read as centred was 0.4-0.5 rows off per field.
+                # Over 1200 draws the colour's median 0.075 px, 99.9 % 0.28, max 0.30 -
+                # CI seed 1237331972 drew 0.304: the bound sits between the two)
+                assert off < 0.35, (f"seed {seed}, case {case} ({order}): field {f.field}'s "
                                    f"{name} centroid {off:.2f} px from its exposure")
 
 
