@@ -296,6 +296,7 @@ class FrameClock:
         self.period = 1.0 / float(fps) if fps and fps > 0 else 0.0
         on = tick_s > COARSE_TICK_S and phase_s is not None and self.period > 0
         self.half = 0.5 * float(tick_s) + 1e-9 if on else 0.0
+        self.tick = float(tick_s) if on else 0.0
         self.phase = float(phase_s) if on else 0.0
 
     def __call__(self, raw: float) -> float:
@@ -305,6 +306,16 @@ class FrameClock:
             if abs(t - grid) <= self.half:
                 return grid
         return t
+
+    def anchor(self, raw: float) -> None:
+        """Move the grid to the decoder's origin where the first frame's time ``raw``
+        (s) is off it: a decoder that counts from the first frame's stored time (OpenCV:
+        a Matroska stream whose first frame is at 29.22 ms, stored as 29, read 0, 34,
+        67 ms for 0, 33.37, 66.73 - kept to the millisecond, 0.7 ms off).  The grid's
+        phase (the first packet's time, :func:`_time_grid`) is then that time's
+        rounding, from ``raw``; times relative to the first frame are exact again."""
+        if self.half > 0 and self(raw) == float(raw):
+            self.phase = float(raw) + self.phase - self.tick * round(self.phase / self.tick)
 
 
 #: packets whose timestamps place the frame rate's grid (:func:`_time_grid`)
@@ -1009,6 +1020,8 @@ def iter_frames(path, start: int = 0, end: int | None = None, exclude=(),
             # Container timestamps where meaningful (strictly increasing); else index/fps.
             if not np.isfinite(ms) or ms <= prev_ms:
                 ms = prev_ms + 1000.0 / fps if np.isfinite(prev_ms) else index * 1000.0 / fps
+            if not np.isfinite(prev_ms):
+                clock.anchor(ms / 1000.0)
             ms = 1000.0 * clock(ms / 1000.0)
             prev_ms = ms
             if index == start:
