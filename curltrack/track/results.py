@@ -368,7 +368,9 @@ def colour_mixing_sigma(t, shot, ok, dt_fields: float,
     travel is across the image - the colour is the image's - so ``speed`` (m/s per
     row, :func:`image_speed`) is the rock's speed across it where given (finite);
     elsewhere the measured rows' speed on the ice (``shot``'s x, y against ``t``),
-    interpolated to the rest.  Spins: ``shot``'s theta.
+    interpolated to the rest.  Spins: ``shot``'s theta.  (The caller scales it by
+    the share of the travel the fields' markers show mixed,
+    :func:`colour_mixing_share`: all of it when both fields see one colour.)
     """
     use = ok & np.isfinite(shot["x"]) & np.isfinite(shot["y"])
     n = len(t)
