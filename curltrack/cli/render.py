@@ -133,8 +133,10 @@ def render(
                           render_video)
     from ..rig import default_rig, load_rig
 
-    if output.suffix.lower() != ".mp4":
-        fail(f"{output}: the video must be an .mp4 file", code=2)
+    wanted = ".mov" if codec == "dv" else ".mp4"   # (DV is written in QuickTime)
+    if output.suffix.lower() != wanted:
+        fail(f"{output}: the video must be a {wanted} file"
+             + (" (DV is written in QuickTime)" if codec == "dv" else ""), code=2)
     if (series_path is None) == (v0 is None and omega0 is None):
         fail("give either a series (SIM.csv) or --v0 and --omega0", code=2)
     from ..series import sidecar_path

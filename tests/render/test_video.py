@@ -139,12 +139,15 @@ def test_cli_render_and_its_errors(tmp_path):
         ([str(sim), "-o", str(tmp_path / "b.mp4"), "--camera", "drone"], 1, "motion"),
         ([str(tmp_path / "missing.csv"), "-o", str(tmp_path / "b.mp4")], 1, "missing.csv"),
         ([str(sim), "-o", str(tmp_path / "b.avi")], 2, "mp4"),
+        # (DV is written in QuickTime, at DV's own sizes and rates)
+        ([str(sim), "-o", str(tmp_path / "b.mp4"), "--codec", "dv"], 2, ".mov"),
+        ([str(sim), "-o", str(tmp_path / "b.mov"), "--codec", "dv"], 1, "720x480"),
     ]:
         res = runner.invoke(app, ["render", *args, "--quiet"])
         assert res.exit_code == code, res.output
         assert text in res.output and "Traceback" not in res.output
         assert len(res.output.strip().splitlines()) == 1
-        assert not (tmp_path / "b.mp4").exists()
+        assert not (tmp_path / "b.mp4").exists() and not (tmp_path / "b.mov").exists()
 
 
 def test_cli_initial_conditions_and_bad_rig(tmp_path):
