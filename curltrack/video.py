@@ -784,8 +784,7 @@ def _scan_from_content(av_info: dict, fm: "FieldMotion | None") -> tuple[dict, s
         if not fm.woven:
             return av_info, "", ""
         return ({**av_info, "interlaced": True, "top_field_first": fm.order == "tff",
-                 "colour_per_field": fm.colour_per_field, "colour_kept": fm.colour_kept},
-                fm.describe(), "")
+                 "colour_per_field": fm.colour_per_field}, fm.describe(), "")
     flagged = "tff" if av_info["top_field_first"] else "bff"
     if fm.one_exposure:
         # two fields of one exposure timed half a frame apart would put every other
@@ -801,8 +800,7 @@ def _scan_from_content(av_info: dict, fm: "FieldMotion | None") -> tuple[dict, s
     elif not fm.colour_per_field:
         notes.append(f"flagged interlaced: {fm.describe()}")
     return ({**av_info, "top_field_first": fm.order == "tff",
-             "colour_per_field": fm.colour_per_field, "colour_kept": fm.colour_kept}, "",
-            "; ".join(notes))
+             "colour_per_field": fm.colour_per_field}, "", "; ".join(notes))
 
 
 @functools.lru_cache(maxsize=32)

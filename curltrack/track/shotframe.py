@@ -395,6 +395,16 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
     return float(np.hypot(stat, model))
 
 
+def _linear_stop(coef) -> tuple[float, float, float]:
+    """(speed, |acceleration|, time to stop) at t = 0 of a quadratic fit's ``coef``
+    (1, t, t^2 terms; per coordinate): the speed at least 0.05, the stop at the speed
+    over the deceleration along the motion (infinite where the rock does not slow)."""
+    v, a = coef[1], 2.0 * coef[2]
+    speed = max(float(np.linalg.norm(v)), 0.05)
+    decel = -float(np.sum(a * v)) / speed
+    return speed, float(np.linalg.norm(a)), (speed / decel if decel > 0 else np.inf)
+
+
 #: Span (s, from the first row) over which :func:`path_cubic` measures the path's cubic
 #: term, ended before :data:`ORIGIN_CHECK_STOP_FRACTION` of the time to stop.
 CUBIC_WINDOW_S = 3.0 * WINDOW_S
@@ -416,10 +426,7 @@ def path_cubic(t: np.ndarray, q: np.ndarray, coef: np.ndarray, weights=None) -> 
     """
     t = np.asarray(t, float)
     q = np.asarray(q, float).reshape(len(t), -1)
-    v, a = coef[1], 2.0 * coef[2]
-    speed = max(float(np.linalg.norm(v)), 0.05)
-    decel = -float(np.sum(a * v)) / speed
-    t_stop = speed / decel if decel > 0 else np.inf
+    t_stop = _linear_stop(coef)[2]
     end = min(t[0] + CUBIC_WINDOW_S, t[0] + ORIGIN_CHECK_STOP_FRACTION * t_stop)
     sel = (t >= t[0]) & (t <= end) & np.isfinite(q).all(axis=1)
     n = int(np.count_nonzero(sel))
@@ -511,11 +518,7 @@ def origin_check(t: np.ndarray, q: np.ndarray, min_cubic=EXTRAPOLATION_M_S3,
     deg1, A1, coef1, res1, sw1 = _window_fit(t, q, weights=weights)
     if deg1 < 2:
         return out
-    v, a = coef1[1], 2.0 * coef1[2]
-    speed = max(float(np.linalg.norm(v)), 0.05)
-    accel = float(np.linalg.norm(a))
-    decel = -float(np.sum(a * v)) / speed
-    t_stop = speed / decel if decel > 0 else np.inf
+    speed, accel, t_stop = _linear_stop(coef1)
     p1 = _intercept_weights(A1, sw1)
     cubic1 = max(min_cubic, MAX_ABS_PHI * accel ** 2 / speed / 6.0)
     for from_s, span_s in windows:
