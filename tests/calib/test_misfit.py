@@ -59,3 +59,35 @@ def test_gain_takes_off_a_clear_misfit_and_leaves_noise_alone():
     gain, s = misfit_gain(signal, sigma)
     assert np.all(gain > 0.9), f"seed {seed}: gain {gain} on a misfit 5x its noise"
     assert misfit_gain(np.zeros((0, 2)), np.zeros((0, 2)))[0].shape == (0, 2)
+
+
+def test_a_misfit_departing_from_its_neighbours_is_counted_as_its_error():
+    """A frame's misfit at the rock that departs from its neighbours' (threads beside the
+    rock disturbed for a few frames) is an error of that frame as large as the departure;
+    a misfit that changes smoothly over the shot (the rock crossing a lens's residual)
+    adds next to nothing beyond its noise."""
+    from curltrack.track.results import misfit_departure
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    fps = float(rng.choice([25.0, 30.0, 50.0, 60.0]))
+    t = np.arange(int(rng.integers(60, 200))) / fps
+    sd = rng.uniform(0.2e-3, 1e-3)
+    sigma = np.full((t.size, 2), sd)
+    smooth = (rng.uniform(-3e-3, 3e-3, 2) * np.sin(rng.uniform(0.3, 1.5) * t[:, None]
+                                                   + rng.uniform(0, 6, 2)))
+    misfit = smooth + rng.normal(0, sd, (t.size, 2))
+    quiet = misfit_departure(t, misfit, sigma)
+    # (noise alone: departures beyond 3 sigma in either coordinate, ~0.6 % of the rows,
+    # each counted at ~2-3 sigma)
+    assert np.mean(quiet > 0) < 0.04 and np.sqrt(np.mean(quiet ** 2)) < 0.5 * sd, (
+        f"seed {seed}: {np.mean(quiet > 0):.3f} of rows, {quiet[quiet > 0] / sd} sigma")
+    k = int(rng.integers(5, t.size - 10))
+    width = int(rng.integers(1, 5))
+    size = rng.choice([-1, 1]) * rng.uniform(5, 10) * sd
+    misfit[k:k + width, int(rng.integers(2))] += size
+    loud = misfit_departure(t, misfit, sigma)
+    hit = loud[k:k + width] / np.sqrt(0.5)   # (per coordinate: one of two disturbed)
+    assert np.all(hit > 0.7 * abs(size)) and np.all(hit < 1.3 * abs(size) + 3 * sd), (
+        f"seed {seed}: {width} frames disturbed by {1e3 * size:.2f} mm: {1e3 * hit}")
+    assert misfit_departure(t[:2], misfit[:2], sigma[:2]).shape == (2,)
