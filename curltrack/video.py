@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._atomic import quiet_opencv_ffmpeg
 from .errors import VideoError
 
 # FFmpeg's own log lines (e.g. "moov atom not found") must not reach the user's terminal:
@@ -239,6 +240,7 @@ def check_rig_fps(container_fps: float, rig_fps: float | None, path=None) -> Non
 def _open(path):
     import cv2
 
+    quiet_opencv_ffmpeg()
     p = Path(path)
     if not p.exists():
         raise VideoError("no such file", path=p)

@@ -249,25 +249,31 @@ def write_debug_frames(video_path, outdir, frames, records, series, calib, rig):
     from pathlib import Path
 
     outdir = Path(outdir)
-    by_frame = {r.frame: r for r in records}
-    data = series.data.set_index("frame")
+    data = series.data
     written = []
     for f in sorted(set(int(v) for v in frames)):
-        if f not in by_frame:
+        # (an interlaced frame has two records and two rows: one per field)
+        recs = [r for r in records if r.frame == f]
+        if not recs:
             continue
-        rec = by_frame[f]
+        rows = data[data["frame"] == f]
         for _, img in overlay_frames(video_path, records, series, calib, rig, start=f,
                                      end=f + 1):
-            row = data.loc[f] if f in data.index else None
-            found = 0 if rec.markers_px is None else int(np.isfinite(rec.markers_px).all(1).sum())
-            lines = [f"status: {rec.status or 'measured'}",
-                     f"grid {'found' if rec.H is not None else 'not found'}; thread spacing "
-                     f"{rec.spacing_px:.1f} px; markers found {found}/{len(rig.markers)}"]
-            if row is not None and row["ok"] == 1 and "sigma_xy" in row:
-                lines.append(f"sigma_xy {row['sigma_xy'] * 1e3:.2f} mm, sigma_theta "
-                             f"{np.degrees(row['sigma_theta']):.2f} deg, quality "
-                             f"{row['quality']:.2f}")
-            written.append(_write_debug_png(outdir, f, img, rec.markers_px, lines))
+            lines = []
+            for k, rec in enumerate(recs):
+                name = "" if rec.field is None else f"field {rec.field}: "
+                found = (0 if rec.markers_px is None
+                         else int(np.isfinite(rec.markers_px).all(1).sum()))
+                lines += [f"{name}status: {rec.status or 'measured'}",
+                          f"{name}grid {'found' if rec.H is not None else 'not found'}; "
+                          f"thread spacing {rec.spacing_px:.1f} px; markers found "
+                          f"{found}/{len(rig.markers)}"]
+                row = rows.iloc[k] if k < len(rows) else None
+                if row is not None and row["ok"] == 1 and "sigma_xy" in row:
+                    lines.append(f"{name}sigma_xy {row['sigma_xy'] * 1e3:.2f} mm, sigma_theta "
+                                 f"{np.degrees(row['sigma_theta']):.2f} deg, quality "
+                                 f"{row['quality']:.2f}")
+            written.append(_write_debug_png(outdir, f, img, recs[-1].markers_px, lines))
     return written
 
 

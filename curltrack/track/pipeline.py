@@ -384,14 +384,27 @@ def _no_colour(records) -> str:
     return f": {NO_COLOUR}" if any(NO_COLOUR in r.status for r in records) else ""
 
 
-def _anchor(markers_ice, markers_px, frame, max_gap: int):
+def _anchor(markers_ice, markers_px, frame, max_gap: int, per_frame: int = 1):
     """The markers seen in ``frame`` (undistorted px) and their positions on the ice
     extrapolated from the last two measured frames (constant velocity; the rock's motion
     is smooth), for :meth:`GridTracker.update`; None without two frames measured in the
-    last ``max_gap`` frames (settings' ``anchor_max_gap_frames``)."""
+    last ``max_gap`` frames (settings' ``anchor_max_gap_frames``).
+
+    Interlaced video (``per_frame`` = 2, ``frame`` = 2 x frame + field): from the last
+    two of the same field where the history holds them.  The fields' markers differ by
+    more than the rock's motion (a codec's colour mixed between them: DV's, 0.9-1.0 of
+    the image's motion), and extrapolated across fields that difference alternates in
+    sign and doubles: a pole camera's predicted motion swung by +-20 px from field to
+    field, the grid was followed on a few whole-thread averages, sheared by 3 deg, and
+    lost for 70 of 119 frames (camera sweep seed 2026113001, set-up 7).
+    """
+    if per_frame > 1:
+        same = [(f, p) for f, p in markers_ice if (frame - f) % per_frame == 0]
+        if len(same) >= 2:
+            markers_ice = same
     if len(markers_ice) < 2:
         return None
-    (f0, p0), (f1, p1) = markers_ice
+    (f0, p0), (f1, p1) = markers_ice[-2:]
     if frame - f1 > max_gap:
         return None
     return markers_px, p1 + (p1 - p0) * (frame - f1) / (f1 - f0)
@@ -506,7 +519,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     records: list[FrameRecord] = []
     L = det.layout_m
     seen_markers = False
-    markers_ice: list[tuple[int, np.ndarray]] = []  # last two measured (frame, (M, 2) m)
+    markers_ice: list[tuple[int, np.ndarray]] = []  # last measured (frame, (M, 2) m)
     rec_segment = 0  # grid segment of markers_ice
     frozen = _FrozenCheck()
     last_H = None  # the last frame's homography (undistorted px -> lattice m)
@@ -594,7 +607,8 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             M = len(L)
             q = undistort(np.vstack([mf.xy_px, pixel_steps(mf.xy_px.mean(axis=0))]),
                           calib.K, calib.dist)
-            anchor = _anchor(markers_ice, q[:M], k, st.anchor_max_gap_frames * per_frame)
+            anchor = _anchor(markers_ice, q[:M], k, st.anchor_max_gap_frames * per_frame,
+                             per_frame)
         pose = tracker.update(img, k, mask=mask, anchor=anchor)
         if pose.ok:
             last_H = pose.H
@@ -627,7 +641,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         if pose.segment != rec_segment:  # (the last positions are in another cell index)
             markers_ice, rec_segment = [], pose.segment
         rec.segment = pose.segment
-        markers_ice = (markers_ice + [(k, ice)])[-2:]
+        markers_ice = (markers_ice + [(k, ice)])[-4:]   # (two of each field)
         c, phi, s, _ = similarity_fit(L, ice)
         rec.mirrored = mirrored_layout(L, ice)
         if seen_at is not None:

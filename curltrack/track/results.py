@@ -109,7 +109,7 @@ def _unmeasure(data, ok, mask, frame, warnings, why: str):
 
 def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, sys_theta,
                     origin_sigma, theta0_sigma, origin_shared: float = 0.0,
-                    origin_row_sigma=None, sys_local=None) -> dict:
+                    origin_row_sigma=None) -> dict:
     """Per-row sigma_xy / sigma_theta whose random part is scaled on the video itself.
 
     ``pix_xy`` (N,; m per coordinate) and ``pix_theta`` (rad) are the rows' pixel-noise
@@ -120,8 +120,7 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     (:data:`SIGMA_SLOW_RATIO` x the shot's median random variance), the origin (the
     white part of its fit's value at t = 0, from the calibrated rows, weighted as the
     fit by ``origin_row_sigma`` (N,) when given; ``origin_sigma`` when given: a late
-    first frame's extrapolation; each first row's ``sys_xy`` in it too, and its
-    ``sys_local`` (N,: a disturbance that lasts over frames) as shared by them), ``sys_xy``
+    first frame's extrapolation; each first row's ``sys_xy`` in it too), ``sys_xy``
     (parallax, the fields' offset, the lattice's local misfit at the rock: what its
     correction leaves) and
     ``origin_shared`` (m: the error the origin's first rows share,
@@ -150,15 +149,11 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
             m, p0 = origin_weights(t[idx], None if origin_row_sigma is None
                                    else row_weights(np.asarray(origin_row_sigma)[idx]))
             first = idx[:m]
-            # (each row's own systematic error too, and a disturbance of the lattice
-            # under a few of the first rows as one - it lasts from frame to frame and
-            # bends the fit with it: test_scale seed 2952236499, a handle over the
-            # threads for 4 frames, every row 2 mm off under 0.85 mm)
+            # (each first row's own systematic error too: a handle over the threads
+            # beside the rock, test_scale seed 2952236499)
             sys_first = np.broadcast_to(np.asarray(sys_xy, float), (n,))[first]
-            local = (0.0 if sys_local is None
-                     else float(np.sum(np.abs(p0) * np.asarray(sys_local, float)[first])))
-            origin_sigma = float(np.sqrt(np.sum(p0 ** 2 * (fast[first] ** 2 + sys_first ** 2))
-                                         + local ** 2))
+            origin_sigma = float(np.sqrt(np.sum(p0 ** 2 * (fast[first] ** 2
+                                                           + sys_first ** 2))))
         slow2 = SIGMA_SLOW_RATIO * float(np.median(fast[idx])) ** 2
         sigma_xy = np.sqrt(fast ** 2 + slow2 + origin_sigma ** 2 + np.asarray(sys_xy) ** 2)
         # a row off the path (out of the scale) by more than CLIP of its own whole sigma
@@ -538,7 +533,8 @@ def misfit_departure(t, misfit, sigma, window_s: float = MISFIT_SMOOTH_S) -> np.
 
     The lattice's misfit at the rock (``misfit`` (N, 2), its 1 sigma ``sigma``; frames
     at times ``t``, increasing) changes slowly as the rock crosses the image: a frame
-    whose misfit departs from its neighbours' by more than 3x its noise was read off
+    whose misfit departs from its neighbours' by more than 3x its noise (its sigma, or
+    the departures' robust scatter where that is larger) was read off
     threads something disturbed there (a broom's handle over the threads beside the
     rock), and its correction cannot be trusted by more than that departure.
     """
@@ -550,9 +546,18 @@ def misfit_departure(t, misfit, sigma, window_s: float = MISFIT_SMOOTH_S) -> np.
     size = _median_size(np.asarray(t, float), window_s)
     med = np.column_stack([median_filter(m[:, j], size=size, mode="nearest")
                            for j in range(m.shape[1])])
-    d2 = (m - med) ** 2
-    # (beyond 3 sigma only: noise alone would add 0.7 of the misfit's sigma to every row)
-    return np.sqrt(np.mean(np.where(d2 > 9.0 * s ** 2, d2 - s ** 2, 0.0), axis=1))
+    d = m - med
+    # the misfit's noise as its departures show it where its sigma says less (the
+    # threads' residuals are not independent: an action camera's wide lens, misfits
+    # scattering 3x their sigma from frame to frame, 91 of 203 frames over 3 sigma -
+    # noise of every frame, which the rows' own scatter holds already)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k = np.array([max(1.0, robust_sigma(d[:, j] / s[:, j], centre=0.0))
+                      if np.isfinite(d[:, j] / s[:, j]).sum() >= 3 else 1.0
+                      for j in range(d.shape[1])])
+    noise2 = (k * s) ** 2
+    # (beyond 3 sigma only: noise alone would add 0.7 of its sigma to every row)
+    return np.sqrt(np.mean(np.where(d ** 2 > 9.0 * noise2, d ** 2 - noise2, 0.0), axis=1))
 
 
 def frame_ranges(frames) -> str:
@@ -875,7 +880,9 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # handle over the threads beside the rock for 4 frames: misfits of 3-4.7 mm amid
     # -1.6 to 0.6 under 0.6-0.9 mm of noise, those rows 4-6 mm off under sigma_xy
     # 1.3-1.9 mm; 480x270, test_scale seed 2952236499)
-    sig_local[idx] = np.hypot(sig_local[idx], misfit_departure(t[idx], misfit, msig))
+    sig_depart = np.zeros(n)
+    sig_depart[idx] = misfit_departure(t[idx], misfit, msig)
+    sig_local = np.hypot(sig_local, sig_depart)
     nd = np.where(np.isfinite(nadir[idx]).all(axis=1, keepdims=True), nadir[idx], app)
     centre[idx] = correct_parallax(app, nd, k[:, None])
     sigma_parallax = np.zeros(n)
@@ -946,9 +953,12 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     sig_g = np.array([r.grid_sigma_m for r in records])
     sig_r = np.array([r.grid_residual_m for r in records])
     sig_r = np.where(np.isfinite(sig_r), sig_r, 0.0)
-    sigma_xy = np.hypot(est.k * np.sqrt((SIGMA_STAT_SCALE ** 2 * (sig_m ** 2 / M + sig_g ** 2))
-                                        + (SIGMA_MISFIT_SCALE * sig_r) ** 2 + sig_misfit ** 2),
-                        sigma_parallax)
+    # (a frame's own sigma: with its misfit's departure, which weighs it less in the
+    # origin's fit - test_scale seed 2952236499's four disturbed rows, at the far end of
+    # the origin's window after a gap, had bent it by 2 mm)
+    sigma_xy = np.sqrt(est.k ** 2 * (SIGMA_STAT_SCALE ** 2 * (sig_m ** 2 / M + sig_g ** 2)
+                                     + (SIGMA_MISFIT_SCALE * sig_r) ** 2 + sig_misfit ** 2)
+                       + sigma_parallax ** 2 + sig_depart ** 2)
     # a rock sliding freely only slows: a video whose rock speeds up begins before the
     # release (at rest, or still pushed), and every t and the origin would be wrong
     rise = speed_rise(t[ok], centre[ok])
@@ -1152,7 +1162,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         t, np.column_stack([shot["x"], shot["y"]]), shot["theta"], ok,
         fld, stops,
         pix_xy=est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2), pix_theta=sig_m / max(lever, 1e-6),
-        sys_xy=np.sqrt(sigma_parallax ** 2 + off_xy ** 2 + sig_local ** 2), sys_local=sig_local,
+        sys_xy=np.sqrt(sigma_parallax ** 2 + off_xy ** 2 + sig_local ** 2),
         origin_shared=origin_shared,
         sys_theta=off_theta,
         # (the origin's own fit error where it is extrapolated or its frames disagree:
