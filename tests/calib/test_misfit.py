@@ -78,16 +78,21 @@ def test_a_misfit_departing_from_its_neighbours_is_counted_as_its_error():
                                                    + rng.uniform(0, 6, 2)))
     misfit = smooth + rng.normal(0, sd, (t.size, 2))
     quiet = misfit_departure(t, misfit, sigma)
-    # (noise alone: departures beyond 3 sigma in either coordinate, ~0.6 % of the rows,
-    # each counted at ~2-3 sigma)
-    assert np.mean(quiet > 0) < 0.04 and np.sqrt(np.mean(quiet ** 2)) < 0.5 * sd, (
-        f"seed {seed}: {np.mean(quiet > 0):.3f} of rows, {quiet[quiet > 0] / sd} sigma")
+    # (noise alone: departures beyond 3 sigma in either coordinate, 0.67 % of the rows
+    # over 3000 draws, at most 8 rows in one; each counted at ~2-3 sigma)
+    n_quiet = int(np.count_nonzero(quiet > 0))
+    assert n_quiet <= max(5, 0.05 * t.size) and np.sqrt(np.mean(quiet ** 2)) < 0.6 * sd, (
+        f"seed {seed}: {n_quiet} of {t.size} rows, {quiet[quiet > 0] / sd} sigma")
     k = int(rng.integers(5, t.size - 10))
     width = int(rng.integers(1, 5))
-    size = rng.choice([-1, 1]) * rng.uniform(5, 10) * sd
+    size = rng.choice([-1, 1]) * rng.uniform(8, 12) * sd
     misfit[k:k + width, int(rng.integers(2))] += size
     loud = misfit_departure(t, misfit, sigma)
     hit = loud[k:k + width] / np.sqrt(0.5)   # (per coordinate: one of two disturbed)
-    assert np.all(hit > 0.7 * abs(size)) and np.all(hit < 1.3 * abs(size) + 3 * sd), (
-        f"seed {seed}: {width} frames disturbed by {1e3 * size:.2f} mm: {1e3 * hit}")
+    # (within 5 sigma of the size: the row's own noise, and the median the disturbed
+    # rows pull - 4 of the 13 a 0.5 s median holds at 25 fps; CI seed 2509088434 drew a
+    # disturbed row 2 sigma against it)
+    assert np.all(np.abs(hit - abs(size)) < 5 * sd), (
+        f"seed {seed}: {width} frames disturbed by {1e3 * size:.2f} mm (noise "
+        f"{1e3 * sd:.2f} mm): {1e3 * hit}")
     assert misfit_departure(t[:2], misfit[:2], sigma[:2]).shape == (2,)
