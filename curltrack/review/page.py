@@ -186,7 +186,9 @@ function timeOfFrame(f) {
   return (p + 0.5) / R.fps;
 }
 function frameAt(tv) {
-  const p = Math.max(0, Math.min(R.video_frames.length - 1, Math.floor(tv * R.fps)));
+  // (a presented frame's media time is its start, which the container's time base can
+  // put a hair before it: 1.99999 s for frame 60 at 30 fps was read as frame 59)
+  const p = Math.max(0, Math.min(R.video_frames.length - 1, Math.floor(tv * R.fps + 0.01)));
   return R.video_frames[p];
 }
 function show(f) {
