@@ -504,6 +504,11 @@ def _n_distinct(v) -> int:
     return int(np.count_nonzero(np.diff(np.sort(v)))) + (len(v) > 0)
 
 
+#: The per-thread covariance of :func:`fit_points` is kept with at least this many
+#: threads per parameter of the homography (fewer cannot hold an 8 x 8 sandwich).
+MIN_THREADS_PER_PARAMETER = 2
+
+
 def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float = 2.0,
                q=None, tol_px: float = 0.05):
     """Refine ``Hc`` on thread points of known family (0/1) and thread index.
@@ -592,11 +597,6 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
             "sigma_px": float(np.sqrt(cov[2, 2] * pa ** 2 + cov[5, 5] * pb ** 2)),
             "cov": cov, "cov_threads": cov_threads}
     return Hc, info
-
-
-#: The per-thread covariance of :func:`fit_points` is kept with at least this many
-#: threads per parameter of the homography (fewer cannot hold an 8 x 8 sandwich).
-MIN_THREADS_PER_PARAMETER = 2
 
 
 def position_sigma_at(Hc, cov, q, f) -> np.ndarray:

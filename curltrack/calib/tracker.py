@@ -154,7 +154,7 @@ class GridPose(PlaneMap):
         points share its misfit of the model, and where the rock lies beyond the
         threads that fix the lattice (a hand-held camera lagging a fast rock) the
         independent points' says too little (test_wrong_cell seed 3543473112: a row
-        10 mm off under 2.9 mm, 3.6 sigma; 2.3 sigma by thread)."""
+        10 mm off under 2.9 mm, 3.6 sigma; 2.4 sigma by thread)."""
         if self.fit_cov is None:
             return self.sigma_px
         Hc, cov, *more = self.fit_cov

@@ -552,9 +552,12 @@ def misfit_departure(t, misfit, sigma, window_s: float = MISFIT_SMOOTH_S) -> np.
     # scattering 3x their sigma from frame to frame, 91 of 203 frames over 3 sigma -
     # noise of every frame, which the rows' own scatter holds already)
     with np.errstate(invalid="ignore", divide="ignore"):
-        k = np.array([max(1.0, robust_sigma(d[:, j] / s[:, j], centre=0.0))
-                      if np.isfinite(d[:, j] / s[:, j]).sum() >= 3 else 1.0
-                      for j in range(d.shape[1])])
+        ratio = d / s
+    k = np.ones(d.shape[1])
+    for j in range(d.shape[1]):
+        finite = np.isfinite(ratio[:, j])   # (a frame without a misfit field: sigma 0)
+        if finite.sum() >= 3:
+            k[j] = max(1.0, float(robust_sigma(ratio[finite, j], centre=0.0)))
     noise2 = (k * s) ** 2
     # (beyond 3 sigma only: noise alone would add 0.7 of its sigma to every row)
     return np.sqrt(np.mean(np.where(d ** 2 > 9.0 * noise2, d ** 2 - noise2, 0.0), axis=1))
