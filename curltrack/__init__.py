@@ -40,8 +40,17 @@ Examples
 'draw'
 """
 
+import os
 import sys
 import types
+
+# OpenCV's own FFmpeg prints to stderr ("moov atom not found"; on every frame of an
+# interlaced DV file, "Cannot convert interlaced to progressive frames", decoded right
+# all the same): errors are reported once, as a VideoError.  OpenCV reads this when it
+# first opens a video - in any module (the renderer's check of what it wrote opened
+# one before the video module had set it, and every DV frame printed two lines) - so
+# it is set here, once, unless the user set it.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 __version__ = "0.1.0"
 

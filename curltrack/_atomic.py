@@ -208,15 +208,6 @@ def signals_after():
             signal.raise_signal(got[0])
 
 
-def quiet_opencv_ffmpeg() -> None:
-    """Silence OpenCV's own FFmpeg log (unless the user set ``OPENCV_FFMPEG_LOGLEVEL``).
-
-    It prints to stderr on every frame of some files that it decodes right all the same
-    (an interlaced DV file: "Cannot convert interlaced to progressive frames"); what goes
-    wrong is reported by its return values.  Read when a capture is opened."""
-    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
-
-
 def verify_video(tmp, n_frames: int, path) -> None:
     """Check a just-written video before it is renamed onto ``path``.
 
@@ -230,7 +221,6 @@ def verify_video(tmp, n_frames: int, path) -> None:
     """
     import cv2
 
-    quiet_opencv_ffmpeg()
     why = ""
     if _free_bytes(tmp) == 0:
         why = "; the disk is full"

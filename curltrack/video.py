@@ -38,12 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._atomic import quiet_opencv_ffmpeg
 from .errors import VideoError
-
-# FFmpeg's own log lines (e.g. "moov atom not found") must not reach the user's terminal:
-# errors are reported once, as a VideoError.  Read when OpenCV first opens a video.
-os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 #: Largest relative difference between the rig's ``[camera].fps`` and the container's
 #: frame rate (29.97 vs 30 is 0.1 %); beyond it every time would be scaled wrong.
@@ -240,7 +235,6 @@ def check_rig_fps(container_fps: float, rig_fps: float | None, path=None) -> Non
 def _open(path):
     import cv2
 
-    quiet_opencv_ffmpeg()
     p = Path(path)
     if not p.exists():
         raise VideoError("no such file", path=p)

@@ -575,7 +575,8 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
     chi2 = float(np.sum(ww * r * r))
     pa, pb = periods_px(Hc, f)
     # 1-sigma of the translation terms h2, h5 (cells) -> px at the image centre
-    cov = np.linalg.inv(A) * chi2 / max(int(used.sum()) - 8, 1)
+    Ainv = np.linalg.inv(A)
+    cov = Ainv * chi2 / max(int(used.sum()) - 8, 1)
     # the same by thread (cluster-robust): a thread's points share its misfit of the
     # model (the lens, a rolling shutter's shear), which the independent rows' cov
     # above counts as many independent looks; None with too few threads to hold it
@@ -585,7 +586,6 @@ def fit_points(xy, w, fam, idx, Hc, K, dist, iterations: int = 3, clip_px: float
     if threads.size >= MIN_THREADS_PER_PARAMETER * 8:
         score = np.zeros((threads.size, 8))
         np.add.at(score, at, (JW * r[:, None])[used])
-        Ainv = np.linalg.inv(A)
         # (the degrees of freedom left by thread: the residuals of a fit to few threads
         # are smaller than their errors - G / (G - 1) alone left the error at a point
         # beyond the threads 1.16-1.27x what it said, 26 threads)

@@ -141,7 +141,7 @@ class GridPose(PlaneMap):
     notes: list = field(default_factory=list)
     misfit: tuple | None = None
     #: (the lattice as fitted - before any whole-cell shift -, its (8, 8) covariance,
-    #: and optionally the same by thread, :func:`.lattice.fit_points`' ``cov_threads``)
+    #: and the same by thread, :func:`.lattice.fit_points`' ``cov_threads``, or None)
     fit_cov: tuple | None = None
 
     def sigma_px_at(self, q) -> float:
@@ -157,11 +157,11 @@ class GridPose(PlaneMap):
         10 mm off under 2.9 mm, 3.6 sigma; 2.4 sigma by thread)."""
         if self.fit_cov is None:
             return self.sigma_px
-        Hc, cov, *more = self.fit_cov
+        Hc, cov, cov_threads = self.fit_cov
         f = self.K[0, 0]
         sig = float(position_sigma_at(Hc, cov, q, f)[0])
-        if more and more[0] is not None:
-            sig = max(sig, float(position_sigma_at(Hc, more[0], q, f)[0]))
+        if cov_threads is not None:
+            sig = max(sig, float(position_sigma_at(Hc, cov_threads, q, f)[0]))
         return sig
 
 

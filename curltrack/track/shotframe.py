@@ -208,10 +208,12 @@ def row_weights(sigma) -> np.ndarray | None:
     return w
 
 
-def _intercept_weights(A: np.ndarray, sw: np.ndarray) -> np.ndarray:
-    """p0 with the weighted least-squares fit's value at t = 0 = ``p0 @ q`` (rows of the
-    design ``A``, square-root weights ``sw``)."""
-    return np.linalg.pinv(A * sw[:, None])[0] * sw
+def _intercept_weights(A: np.ndarray, sw: np.ndarray, at: float = 0.0) -> np.ndarray:
+    """p0 with the weighted least-squares fit's value at t = ``at`` (s; default 0) =
+    ``p0 @ q`` (rows of the design ``A``: 1, t, t^2 ... columns; square-root weights
+    ``sw``)."""
+    x = float(at) ** np.arange(A.shape[1])
+    return x @ np.linalg.pinv(A * sw[:, None]) * sw
 
 
 def origin_weights(t, weights=None) -> tuple[int, np.ndarray]:
@@ -402,7 +404,7 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
         # counted where the first row is at t = 0 either - a DV field one frame late,
         # 0.04 s, took the bound's whole 1.8 mm for rows 0.5 mm off, e/sigma 0.20)
         t0 = float(t[0])
-        p_first = np.array([1.0, t0, t0 * t0]) @ np.linalg.pinv(A * sw[:, None]) * sw
+        p_first = _intercept_weights(A, sw, at=t0)
         model = cubic * abs(float(p0 @ tk ** 3) - (float(p_first @ tk ** 3) - t0 ** 3))
     else:
         model = 0.5 * max_deceleration_m_s2 * float(t[0]) * (float(t[0]) + float(np.ptp(tk)))
