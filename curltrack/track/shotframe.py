@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._stats import robust_sigma
+from ..sanity import MAX_SPIN
 from ..settings import TrackingSettings
 
 __all__ = ["unwrap_angle", "initial_state", "choose_axes", "to_shot_frame"]
@@ -146,8 +147,16 @@ def unwrap_angle(t: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray
         b = _edge_rate(t[k:m], out[k:m], noise, before=False)
         mid = 0.5 * (ta + tb)
         if a is None and b is None:
-            pred, sig = out[j - 1], np.inf
-        elif a is not None and b is not None:
+            # single frames on both sides (rows left out every other frame): no rate,
+            # but a rock turns by at most MAX_SPIN dt across the gap - one branch within
+            # it where that is under half a turn
+            turns = np.round((out[j - 1] - out[k]) / (2 * np.pi))
+            out[k:m] += 2 * np.pi * turns
+            reach = MAX_SPIN * dt + TURN_Z * np.sqrt(2.0) * noise
+            if not (abs(out[k] - out[j - 1]) <= reach < np.pi):
+                sure[k:] = False
+            continue
+        if a is not None and b is not None:
             lam = (mid - a[2]) / max(b[2] - a[2], 1e-9)
             rate = (1 - lam) * a[0] + lam * b[0]
             pred = out[j - 1] + rate * dt

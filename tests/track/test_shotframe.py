@@ -63,6 +63,72 @@ def test_turns_across_a_gap_are_counted_or_not_given():
     assert slipped_old >= 0.02 * n, f"seed {seed}: the one-frame rate slipped in {slipped_old}"
 
 
+def test_turns_across_single_frames_use_the_spins_bound():
+    """Rows left out every other frame at the start (leading strays: frames 1 and 3 of
+    a hand-held clip) leave single frames, with no spin rate on either side of a gap:
+    a rock turns by at most MAX_SPIN dt there, so a one- or two-frame gap keeps its
+    turn count (the whole clip's theta was left empty before) - and a step beyond that
+    bound is not given as sure."""
+    from curltrack.sanity import MAX_SPIN
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        fps = float(rng.choice([25.0, 30.0, 50.0, 59.94]))
+        t = np.arange(0.0, 4.0, 1 / fps)
+        theta = rng.uniform(-4.0, 4.0) * t + rng.uniform(0, 2 * np.pi)
+        keep = np.ones(t.size, bool)
+        keep[[1, 3]] = False                       # runs [0], [2], [4 ...]
+        meas = theta[keep] + rng.normal(0.0, np.radians(0.5), keep.sum())
+        cum, sure = unwrap_angle(t[keep], np.angle(np.exp(1j * meas)))
+        turns = np.round((cum - theta[keep]) / (2 * np.pi))
+        assert sure.all() and (turns == turns[0]).all(), f"seed {seed}: fps {fps}"
+    # a jump no rock can turn in two frame steps is not counted as sure
+    t = np.arange(0.0, 2.0, 1 / 30)[[0, 2, 4, 5, 6, 7, 8, 9, 10]]
+    phi = np.r_[0.0, 0.9 * np.pi, np.full(7, 0.9 * np.pi)]
+    assert 0.9 * np.pi > MAX_SPIN * 2 / 30
+    _, sure = unwrap_angle(t, phi)
+    assert sure[0] and not sure[1:].any()
+
+
+def test_strays_that_move_the_origin_by_chance_are_kept():
+    """The test that leaves the first rows out when the origin moves without them
+    beyond chance (``strays_shift_origin``, a 640x360 hand-held clip's rows 1-3 that
+    bent every row by 9 mm) leaves right rows in: on clean simulated shots (white or
+    persisting noise, 25-60 fps) any 1-4 of the first rows left out move the origin
+    beyond its threshold in ~1 % of draws."""
+    from curltrack.physics.shot import ShotModel
+    from curltrack.simulate import simulate_series
+    from curltrack.track.results import strays_shift_origin
+    from curltrack.track.shotframe import WINDOW_S
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    n_draws, fired = 100, 0
+    for _ in range(n_draws):
+        fps = float(rng.choice([25.0, 30.0, 50.0, 59.94]))
+        sim = simulate_series(ShotModel(v0=rng.uniform(1.0, 2.5),
+                                        omega0=rng.uniform(0.5, 2.5)), fps=fps).data
+        n = min(len(sim), int(5 * fps))
+        t = sim.t.to_numpy()[:n]
+        sigma = rng.uniform(0.5e-3, 3e-3) * rng.uniform(0.7, 1.4, n)
+        rho = rng.choice([0.0, 0.6, 0.9])
+        e = rng.normal(0.0, 1.0, (n, 2))
+        for i in range(1, n):
+            e[i] = rho * e[i - 1] + np.sqrt(1 - rho ** 2) * e[i]
+        centre = sim[["x", "y"]].to_numpy()[:n] + e * sigma[:, None]
+        phi = sim.theta.to_numpy()[:n]
+        lead = np.flatnonzero(t < WINDOW_S / 3)
+        left = rng.choice(lead, int(rng.integers(1, min(4, lead.size) + 1)), replace=False)
+        ok = np.ones(n, bool)
+        without = ok.copy()
+        without[left] = False
+        fired += strays_shift_origin(to_shot_frame(t, centre, phi, ok, sigma=sigma),
+                                     to_shot_frame(t, centre, phi, without, sigma=sigma))
+    # (~1 % expected: 5 or more of 100 has a chance of ~0.3 %)
+    assert fired <= 5, f"seed {seed}: right first rows left out in {fired} of {n_draws}"
+
+
 def test_axes_and_origin_follow_the_initial_travel():
     rng = np.random.default_rng(2)
     for _ in range(10):
