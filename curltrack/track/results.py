@@ -829,10 +829,11 @@ def strays_shift_origin(with_them: dict, without: dict) -> bool:
     testable (False) where the origin's sigma does not grow without them (its floors
     and the rows' own scatter then set it, not the rows left out).
 
-    Measured on 70 rendered sweep and bench clips (session 38): the leading strays of
-    23 were tested; the origin moved beyond chance on 3, and on every one the origin
-    placed without them was nearer the truth or as near (8.8 -> 2.1 mm, 4.5 -> 1.7 mm,
-    9.2 -> 9.5 mm).
+    Measured on 70 rendered sweep and bench clips (session 38): 23 had leading strays;
+    the origin moved beyond chance on 2, both placed nearer the truth without them
+    (shared error 8.8 -> 2.1 mm, 4.5 -> 1.7 mm).  On clean simulated shots (white and
+    persisting noise) right rows move it beyond chance in ~1 % of draws; without the
+    floor (:data:`STRAY_SHIFT_FLOOR`) in 3-5 %.
     """
     var = without["origin_sigma_m"] ** 2 - with_them["origin_sigma_m"] ** 2
     if not var > 0:
