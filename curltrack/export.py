@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import ParameterError
-from .series import Series
+from .series import Series, sample_index
 
 __all__ = ["derivatives", "DERIVATIVE_COLUMNS"]
 
@@ -145,7 +145,7 @@ def derivatives(series: Series, window_s: float = 0.5, order: int = 2) -> pd.Dat
                 # second differences, up to 6 rows apart) about a smooth path - a sliding
                 # rock's own second differences over 6 rows (0.1 m/s^2 x (0.2 s)^2 = 4 mm
                 # at 30 fps) are no noise; a stated per-row sigma is kept where larger
-                noise = estimate_noise(meas["frame"].to_numpy()[good],
+                noise = estimate_noise(sample_index(meas)[good],
                                        _off_path(t, q, stretches)[good], name=series.name,
                                        field=c, floor=1e-12)
                 sigma = np.full(len(q), noise.sigma)

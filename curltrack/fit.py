@@ -47,7 +47,7 @@ from .fitting import solve
 from .physics.params import DESKEW, LAMBDA, bound_warnings, to_lmfit
 from .rig import Rig, default_rig
 from .sanity import check_units, late_stop_warning
-from .series import Series, series_stops
+from .series import Series, sample_index, series_stops
 from .series.noise import row_sigma
 
 PURE_ROTATION_MAX_TRAVEL_M = 0.10
@@ -761,7 +761,7 @@ def _noise_rows(d: pd.DataFrame, col: str, field: str, t, q, t_stop, path):
     # noise-free (simulated) data: a floor keeps the scaled covariance computable
     floor = 1e-9 * float(np.nanmax(np.abs(q))) + 1e-15
     try:
-        return row_sigma(d["frame"].to_numpy(int), q, t=t, t_stop=t_stop, name=path,
+        return row_sigma(sample_index(d), q, t=t, t_stop=t_stop, name=path,
                          field=field, floor=floor,
                          weights=d[col].to_numpy(float) if col in d else None)[1]
     except SeriesError:

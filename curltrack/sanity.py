@@ -485,8 +485,12 @@ def bound_rows(series_list, max_rows: int = DISCOVER_MAX_ROWS):
     n = sum(int((s.data["ok"] == 1).sum()) for s in series_list)
     if n <= max_rows:
         return list(series_list), []
-    def thin(d, k):  # frame // k: consecutive kept rows stay consecutive (the noise model)
-        return d.iloc[::k].assign(frame=d["frame"].iloc[::k] // k).reset_index(drop=True)
+    from .series import sample_index
+
+    def thin(d, k):  # exposure // k: consecutive kept rows stay consecutive (the noise
+        # model); a field series thinned is one row per kept exposure, fields no more
+        kept_rows = d.iloc[::k].assign(frame=sample_index(d)[::k] // k)
+        return kept_rows.drop(columns=["field"], errors="ignore").reset_index(drop=True)
 
     def kept(k):  # (each series keeps its first row: n / k rounded up per series)
         return sum(int((s.data["ok"].iloc[::k] == 1).sum()) for s in series_list)

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import SeriesError
 from ..rig import default_rig
-from ..series import Series, series_stops
+from ..series import Series, sample_index, series_stops
 from ..series.noise import Noise, row_sigma
 
 COORDS = ("x", "y", "theta")
@@ -118,7 +118,7 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
         raise SeriesError(f"too few measured rows with t >= 0 ({len(d)}; need {MIN_ROWS})",
                           path=name, where=f"rows 2-{len(series.data) + 1}")
     t = d["t"].to_numpy(float)
-    frame = d["frame"].to_numpy(int)
+    frame = sample_index(d)  # (exposures: fields of interlaced video count alike)
     obs = {c: d[c].to_numpy(float) for c in COORDS}
     t_tr, t_rot, warnings = series_stops(series)
     obs, origin = _recentre(t, obs, name, warnings)

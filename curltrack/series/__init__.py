@@ -13,12 +13,12 @@
 """
 
 from .io import (COLUMNS, OPTIONAL_COLUMNS, SIDECAR_KEYS, Series, make_meta, read_series,
-                 sidecar_path, validate, write_series)
+                 sample_index, sidecar_path, validate, write_series)
 from .noise import Noise, estimate_noise, robust_sigma, white_sigma
 from .segment import ShotSegment, segment_motion
 from .stops import StopTimes, detect_stops, series_stops
 
 __all__ = ["COLUMNS", "OPTIONAL_COLUMNS", "SIDECAR_KEYS", "Series", "make_meta",
-           "read_series", "sidecar_path", "validate", "write_series", "Noise",
+           "read_series", "sample_index", "sidecar_path", "validate", "write_series", "Noise",
            "estimate_noise", "robust_sigma", "white_sigma", "ShotSegment",
            "segment_motion", "StopTimes", "detect_stops", "series_stops"]

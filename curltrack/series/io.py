@@ -21,7 +21,9 @@ from .._atomic import atomic_path, write_json
 from ..errors import SeriesError
 
 COLUMNS = ("frame", "t", "x", "y", "theta", "ok")
-OPTIONAL_COLUMNS = ("sigma_xy", "sigma_theta", "quality")
+#: (``field``: interlaced video measured per field - 0 the field exposed first, 1 the
+#: second; see :func:`sample_index`)
+OPTIONAL_COLUMNS = ("sigma_xy", "sigma_theta", "quality", "field")
 SIDECAR_KEYS = ("fps", "start_frame", "n_frames", "stop_frame_translation",
                 "stop_frame_rotation", "t_stop_translation", "t_stop_rotation",
                 "camera_height_m", "grid_spacing_px", "frames_lost", "warnings", "version")
@@ -80,6 +82,22 @@ class Series:
     @property
     def name(self) -> str:
         return str(self.path) if self.path else "<series>"
+
+
+def sample_index(data: pd.DataFrame) -> np.ndarray:
+    """Each row's exposure number: ``frame``, or ``2 * frame + field`` for a series
+    measured per field (a ``field`` column: interlaced video, two rows per frame).
+
+    Consecutive exposures get consecutive numbers - what the noise model
+    (:func:`~curltrack.series.noise.estimate_noise`: second differences of consecutive
+    rows) and the whitening across gaps count by.  By ``frame`` alone a field series
+    has no two consecutive rows (two share each frame number): ``discover`` refused
+    every tracked interlaced video with "too few consecutive measured frames".
+    """
+    frame = data["frame"].to_numpy(int)
+    if "field" not in data.columns:
+        return frame
+    return 2 * frame + data["field"].to_numpy(int)
 
 
 #: Cell values read as empty (case-insensitive): numpy's and MATLAB's "nan", R's "NA",
@@ -239,6 +257,14 @@ def validate(data: pd.DataFrame, name: str = "<series>") -> tuple[pd.DataFrame, 
                           f"increase){hint}", path=name, where=f"row {row + 2}")
     out["frame"] = out["frame"].astype(int)
     out["ok"] = out["ok"].astype(int)
+    if "field" in out.columns:
+        bad = ~np.isin(out["field"].to_numpy(float), (0.0, 1.0))
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise SeriesError(f"'field' must be 0 or 1 (the field exposed first or "
+                              f"second), got {_plain(out['field'].iloc[row])}", path=name,
+                              where=f"row {row + 2}")
+        out["field"] = out["field"].astype(int)
     ok = out["ok"].to_numpy() == 1
     holes = ok & ~np.isfinite(out[["x", "y"]].to_numpy()).all(axis=1)
     if holes.any():

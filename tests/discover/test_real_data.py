@@ -391,3 +391,39 @@ def test_clean_shots_show_no_smooth_misfit():
         base = JointModel([shot_from_series(s) for s in series], "paper")
         found = smooth_misfit(base, base.fit(max_nfev=120))
         assert not found, (seed, i, cls, n, found)
+
+
+def test_a_series_measured_per_field_is_read_as_its_exposures(tmp_path):
+    """Interlaced video is tracked per field: two rows per frame, a ``field`` column
+    (contract).  Its exposures are consecutive as 2 frame + field: by ``frame`` alone
+    no two rows were, and ``discover`` refused every tracked interlaced video ("too few
+    consecutive measured frames", session 38: 34 of 34 camcorder clips).  A clean
+    59.94 Hz field series: its noise read as drawn, verdict ``none``; a field that is
+    not 0 or 1 is a one-line error naming the row."""
+    from curltrack.instrument import Sampling
+    from curltrack.series import read_series
+
+    seed = _entropy()
+    rng = np.random.default_rng(seed)
+    noise_class = str(rng.choice(["white", "ar1"]))
+    sm, sr = TYPICAL_SCALE[noise_class]
+    model = ShotModel(v0=rng.uniform(1.4, 2.2), omega0=rng.choice([-1, 1]) * rng.uniform(0.8, 3))
+    sim = simulate_series(model, noise_m=sm, noise_rad=sr, noise_class=noise_class,
+                          seed=int(rng.integers(1 << 30)),
+                          sampling=Sampling(rate_hz=59.94)).data
+    d = sim.assign(frame=np.arange(len(sim)) // 2, field=np.arange(len(sim)) % 2)
+    path = tmp_path / "fields.csv"
+    d.to_csv(path, index=False)
+    series = read_series(path)
+    assert (series.data["field"] == d["field"]).all()
+    rep = discover(series, n_boot=200, seed=int(rng.integers(1 << 30)))
+    assert rep["verdict"] == "none", f"seed {seed} ({noise_class}): {rep['verdict']}"
+    noise = rep.summary()["noise"][0]
+    for c in ("x", "y"):
+        # (the white-noise sigma of the exposures: AR(1) draws' marginal sigma is sm)
+        assert 0.6 * sm < noise[c]["sigma"] < 1.5 * sm, f"seed {seed}: {c} {noise[c]}"
+    bad = d.copy()
+    bad.loc[7, "field"] = 2
+    bad.to_csv(path, index=False)
+    res = runner.invoke(app, ["discover", str(path), "-o", str(tmp_path / "r.json")])
+    assert res.exit_code == 1 and "row 9" in res.output and "'field'" in res.output, res.output
