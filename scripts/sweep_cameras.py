@@ -1,7 +1,8 @@
 """The camera sweep: random set-ups of real cameras' artefacts, rendered, tracked, scored.
 
     python scripts/sweep_cameras.py [--n 10] [--seed S] [--scale 0.5] [--out DIR]
-                                    [--table FILE.md] [--no-track]
+                                    [--table FILE.md] [--no-track] [--random-kind]
+                                    [--physics closed|model] [--discover]
 
 Each set-up is drawn by :func:`curltrack.render.sweep.draw_setup` (kinds in turn:
 camcorder, phone, action, ladder, handheld; every other choice at random from the seed),
@@ -22,7 +23,10 @@ rendered with its truth and rig beside it in DIR, then tracked with
 - ``z_height``: the camera height's error over its reported sigma, when it was
   measured from the marker layout (within +-2 when honest);
 - ``wrong``: ``ok`` rows off by both more than 10 mm and more than 5 sigma (the
-  issue's wrong row: 0 is the aim).
+  issue's wrong row: 0 is the aim);
+- ``verdict`` (``--discover``): what ``discover`` says of the tracked series alone.
+  With ``--physics model`` the shot is the physics core's own (no effect hidden), so
+  anything but ``none`` is a false alarm of the whole chain, camera to verdict.
 
 Interlaced video: a tracked series with a ``field`` column is compared field by field;
 one without (one row per frame) against the truth of each frame's first field (the
@@ -40,7 +44,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from curltrack.render.sweep import KINDS, draw_setup  # noqa: E402
+from curltrack.render.sweep import KINDS, draw_model_shot, draw_setup  # noqa: E402
 
 
 def score(series, truth) -> dict:
@@ -84,7 +88,7 @@ def score(series, truth) -> dict:
 
 
 def run(i: int, seed: int, n: int, scale: float, out: Path, track: bool,
-        random_kind: bool) -> dict:
+        random_kind: bool, physics: str = "closed", with_discover: bool = False) -> dict:
     from curltrack.errors import CurltrackError
     from curltrack.render import render_video
     from curltrack.rig import default_rig, load_rig
@@ -92,6 +96,10 @@ def run(i: int, seed: int, n: int, scale: float, out: Path, track: bool,
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(n)[i])
     kind = None if random_kind else KINDS[i % len(KINDS)]
     setup = draw_setup(rng, kind, scale)
+    if physics == "model":  # (the same camera set-up; the shot from the physics core)
+        from dataclasses import replace
+
+        setup = replace(setup, shot=draw_model_shot(np.random.default_rng(setup.seed)))
     video = out / f"setup{i:02d}_{setup.kind}{setup.suffix}"
     t0 = time.process_time()
     row = dict(i=i, **setup.summary)
@@ -118,6 +126,17 @@ def run(i: int, seed: int, n: int, scale: float, out: Path, track: bool,
         row["track_cpu_s"] = round(time.process_time() - t0, 1)
     row.update(score(series, truth))
     row["warnings"] = len(series.meta.get("warnings", []))
+    if with_discover:
+        from curltrack.discover import discover
+
+        try:
+            rep = discover(series, seed=0)
+            row["verdict"] = rep["verdict"]
+            if rep["verdict"] != "none" and rep["findings"]:
+                f = rep["findings"][0]
+                row["verdict"] += f" ({f['effect']} ΔBIC {f['delta_bic']:.0f})"
+        except CurltrackError as exc:
+            row["verdict"] = "error: " + str(exc).splitlines()[0][:100]
     return row
 
 
@@ -131,7 +150,7 @@ COLS = [("i", "#", "{}"), ("kind", "kind", "{}"), ("size", "size", "{}"),
         ("rms_z_xy", "RMS e/σ xy", "{:.2f}"), ("shared_mm", "shared mm", "{:.2f}"),
         ("z_theta", "std e/σ θ", "{:.2f}"),
         ("z_height", "height e/σ", "{:+.1f}"), ("stop_err", "stop Δframe", "{:+d}"),
-        ("error", "error", "{}")]
+        ("verdict", "discover", "{}"), ("error", "error", "{}")]
 
 
 def pooled_rms_z(rows) -> dict:
@@ -172,6 +191,13 @@ def main(argv=None) -> int:
     ap.add_argument("--table", type=Path, default=None, help="write the markdown table here")
     ap.add_argument("--no-track", action="store_true")
     ap.add_argument("--random-kind", action="store_true", help="kinds at random, not in turn")
+    ap.add_argument("--physics", choices=("closed", "model"), default="closed",
+                    help="the shot: the paper's closed forms with independent stops (the "
+                    "tracker's test), or the physics core's model (a clean shot for "
+                    "discover)")
+    ap.add_argument("--discover", action="store_true",
+                    help="also run discover on each tracked series (a 'verdict' column: "
+                    "anything but none on a --physics model sweep is a false alarm)")
     ap.add_argument("--only", type=str, default=None,
                     help="comma-separated set-up indices to run (the same set-ups as in the "
                     "full sweep: several processes can share one)")
@@ -182,11 +208,14 @@ def main(argv=None) -> int:
     rows = []
     todo = range(a.n) if a.only is None else [int(v) for v in a.only.split(",")]
     for i in todo:
-        rows.append(run(i, seed, a.n, a.scale, a.out, not a.no_track, a.random_kind))
+        rows.append(run(i, seed, a.n, a.scale, a.out, not a.no_track, a.random_kind,
+                        a.physics, a.discover))
         print(rows[-1], file=sys.stderr, flush=True)
         text = (f"Camera sweep: seed {seed}, scale {a.scale}, "
                 f"`python scripts/sweep_cameras.py --n {a.n} --seed {seed} "
-                f"--scale {a.scale}" + (f" --only {a.only}" if a.only else "") + "`\n\n"
+                f"--scale {a.scale}" + (f" --only {a.only}" if a.only else "")
+                + (" --physics model" if a.physics == "model" else "")
+                + (" --discover" if a.discover else "") + "`\n\n"
                 + table(rows) + "\n")
         if a.table:
             a.table.write_text(text)

@@ -89,6 +89,28 @@ def draw_shot(rng: np.random.Generator, fps: float = 240.0) -> Series:
                                   t_stop_rotation=t_Ft))
 
 
+def draw_model_shot(rng: np.random.Generator, fps: float = 240.0) -> Series:
+    """A draw of the physics core's own model (:class:`~curltrack.physics.ShotModel`,
+    integrated by :func:`~curltrack.simulate.simulate_series`) that stops in ~2.5-5 s:
+    v0 1-2.2 m/s, phi_y -0.6..0 with 4-8x the paper's draw's alpha_y, a spin of 1-3
+    rad/s either way that stops with the slide, a curl 2-6x the draw's a_T.
+
+    :func:`draw_shot`'s closed forms (independent stops for the slide and the spin, a
+    constant curl to the end) are a tracker's test; they are not the world ``discover``
+    models (its curl ends with the spin), so a tracked clip of theirs is no clean shot
+    for ``discover``.  This one is: what ``discover`` says of it is a false alarm unless
+    it is ``none`` (``scripts/sweep_cameras.py --physics model --discover``).
+    """
+    from ..physics.shot import A_T_DRAW, ALPHA_Y_DRAW, ShotModel
+    from ..simulate import simulate_series
+
+    model = ShotModel(v0=rng.uniform(1.0, 2.2),
+                      omega0=rng.choice([-1.0, 1.0]) * rng.uniform(1.0, 3.0),
+                      phi_y=rng.uniform(-0.6, 0.0), alpha_y=ALPHA_Y_DRAW * rng.uniform(4, 8),
+                      a_T=A_T_DRAW * rng.uniform(2, 6))
+    return simulate_series(model, fps=fps)
+
+
 def _lens_ok(cfg: CameraConfig, W: int, H: int) -> bool:
     """Whether the lens maps the whole image monotonically (no fold-over)."""
     r = cfg.resolved()

@@ -68,6 +68,10 @@ SIGMA_SLOW_RATIO = 1.0
 #: own error included; the per-row part left unseen on a camera that follows
 #: the rock, std of error over the random sigma 1.2-1.3, is what this term still holds.)
 THETA0_SLOW_RATIO = 0.2
+#: A rock that speeds up (:func:`~curltrack.sanity.speed_rise`) where at least this
+#: share of the frames up to the rise lost the grid was measured through a grid
+#: followed wrongly, not from before its release (:func:`build_series`' message)
+GRID_LOST_SHARE = 0.25
 #: An origin (the rock at t = 0) whose fit is uncertain by more than this (m) is warned
 #: about, and its fit's own error is then every row's (the bench hand-held: its first
 #: frames disagree by ~3 mm and bend the origin 5 mm; sigma without it 1.7 mm)
@@ -1007,6 +1011,23 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     rise = speed_rise(t[ok], centre[ok])
     if rise is not None:
         k0 = int(np.flatnonzero(ok & (t >= rise["t_release"]))[0])
+        # ... or the grid followed wrongly, its motion mistaken by whole cells: frames
+        # lost for the grid on the way say so (a 0.33 Mbit/s 640x360 hand-held under
+        # glare: every other frame "cell index ambiguous", the rock "sped up" from 1.5
+        # to 2.3 m/s - not a start-frame problem)
+        upto = t <= rise["t_to"]
+        grid_lost = np.array([r.status.startswith("grid") for r in records]) & upto
+        if grid_lost.sum() >= GRID_LOST_SHARE * upto.sum():
+            lost = reason_groups([r for r, g in zip(records, grid_lost) if g])
+            raise TrackingError(
+                f"the measured rock speeds up from {rise['u_from']:.2f} m/s (t = "
+                f"{rise['t_from']:.2f} s) to {rise['u_to']:.2f} m/s (t = "
+                f"{rise['t_to']:.2f} s), which a sliding rock cannot, while the grid was "
+                f"lost in {int(grid_lost.sum())} of those {int(upto.sum())} frames (most: "
+                f"{lost[0][0]}): the grid's motion was most likely followed wrongly, so "
+                f"no position here can be trusted; if the rock is still pushed at first, "
+                f"--start-frame {frame[k0]} measures from its release",
+                path=path, where=f"frames {frame[0]}-{frame[np.flatnonzero(upto)[-1]]}")
         raise StartFrameError(
             f"the rock speeds up from {rise['u_from']:.2f} m/s (t = {rise['t_from']:.2f} s) "
             f"to {rise['u_to']:.2f} m/s (t = {rise['t_to']:.2f} s), and a rock sliding freely "

@@ -251,3 +251,23 @@ def test_a_video_begun_before_the_release_is_refused_with_its_release_frame(tmp_
     release = [c for c in report.checks if c.name == "release"]
     assert not report.ok and release and release[0].status == "fail", (seed, report.format())
     assert "--start-frame" in release[0].detail, (seed, release[0].detail)
+    # the same rise where the grid was lost in a third of the frames up to it is a grid
+    # followed wrongly (its motion mistaken by cells), not a start-frame problem
+    import curltrack.track.pipeline as pipeline
+    from curltrack.errors import StartFrameError
+
+    real = pipeline.track_frames
+
+    def grid_lost_every_third(*args, **kw):
+        records, info = real(*args, **kw)
+        for r in records[1::3]:
+            r.status = r.grid_status = "grid: grid not followed (a snap found only 9 %)"
+        return records, info
+
+    pipeline.track_frames = grid_lost_every_third
+    try:
+        with pytest.raises(TrackingError, match="followed wrongly") as err:
+            track_video(video, rig)
+    finally:
+        pipeline.track_frames = real
+    assert not isinstance(err.value, StartFrameError), (seed, str(err.value))
