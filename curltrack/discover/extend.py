@@ -36,6 +36,7 @@ import numpy as np
 
 from ..physics.extensions import omega_ref
 from ..physics.terms import speed_law_gain
+from .scoring import support_level
 from .search import heldout_log_ratio, judged_like
 
 #: kind -> the term added to the equations, for REPORT.json ``terms``
@@ -223,17 +224,17 @@ def choose(supported, scores, margin: float, r0=None):
         if o.extension and dbic > best.delta_bic - margin:
             return None      # two extensions explain it alike: not one description
         if o.extension and gain is not None and best.chi2_gain is not None and \
-                gain >= best.chi2_gain and o.delta_bic > max(o.threshold["threshold"], 0.0):
+                gain >= best.chi2_gain and o.delta_bic > support_level(o.threshold["threshold"]):
             # fits at least as well: only the parameter count would decide.  On one draw
             # the spin falls with the speed, so a translation coupling 1 + c |omega| is a
             # friction law in disguise (a bent law: chi-square gain 634 against the
             # coupling's 633, delta-BIC 618 and 625)
             return None
         if not o.extension and dbic > best.delta_bic - margin and \
-                o.delta_bic > max(o.threshold["threshold"], 0.0):
+                o.delta_bic > support_level(o.threshold["threshold"]):
             return None      # a named effect explains it about as well: it keeps the name
         if not o.extension and o.fit is not None and o.heldout and best.heldout and \
-                o.delta_bic > max(o.threshold["threshold"], 0.0) and \
+                o.delta_bic > support_level(o.threshold["threshold"]) and \
                 heldout_log_ratio(best.heldout["time"], o.heldout["time"]) < 0:
             # a named effect that clears its threshold and predicts held-out data better:
             # the extension does not speak for it (a 1.9x patch under step noise, found

@@ -10,6 +10,7 @@ from .._atomic import atomic_path, write_json
 from .extend import choose as choose_extension
 from .extend import extension_object
 from .residuals import binned_means, smooth_misfit
+from .scoring import support_level
 from .search import heldout_log_ratio, heldout_worse_p, instrument_step, judged_like
 from .results import DiscoveryReport, Finding
 from .shots import COORDS
@@ -211,7 +212,7 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds, base_jump=None) -> Findin
         # leave-one-shot-out gain is then the refit's noise, not prediction
         if not sc.per_shot:
             ok_cv = ok_cv or kw["loso_rmse_after"] < kw["loso_rmse_before"]
-    kw["supported"] = bool(sc.delta_bic > max(thr, 0.0) and sc.linear_clears and ok_cv)
+    kw["supported"] = bool(sc.delta_bic > support_level(thr) and sc.linear_clears and ok_cv)
     if kw["supported"]:
         kw["not_named_because"] = _blockers(
             kw, cand_bounds, {c: heldout_worse_p(h0, sc.heldout["time"], c) for c in COORDS})

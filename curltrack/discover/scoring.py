@@ -25,9 +25,23 @@ from __future__ import annotations
 import numpy as np
 
 #: per-candidate false-alarm level of the bootstrap threshold
+#: Least delta-BIC a candidate needs to be supported, whatever its look-elsewhere
+#: threshold: 6 on the 2 ln(Bayes factor) scale is "strong" evidence (Kass & Raftery
+#: 1995), below it "positive" at most.  A bootstrap threshold can sit far below it (an
+#: extension's at the 0.5 % level: 0.3-4; a pick's under a null that seldom gains:
+#: negative), and a tracker's persisting errors are not in that null: a translation
+#: coupling at delta-BIC 1.7 over a threshold of 0.6 was "extended" on a tracked
+#: camcorder clip whose shot had none (session 38).
+MIN_DELTA_BIC = 6.0
 CANDIDATE_LEVEL = 0.01
 N_BOOT = 500
 BLOCK_FRAMES = 10
+
+
+def support_level(threshold: float) -> float:
+    """The delta-BIC a candidate whose look-elsewhere threshold is ``threshold`` must
+    exceed to be supported: the larger of the two and :data:`MIN_DELTA_BIC`."""
+    return max(float(threshold), MIN_DELTA_BIC)
 
 
 def orth_basis(a, rel_tol: float = 1e-6):
@@ -101,11 +115,11 @@ def detection_limits(J0, effect_cols, threshold: float, k, n: int) -> list:
         Per location, each parameter's ``s_min`` (inf where the baseline absorbs it).
     """
     Q0 = orth_basis(J0)
-    # a finding is supported above max(threshold, 0) (report._finding): a threshold
-    # below zero - the null's delta-BIC seldom positive - does not lower that (a session
-    # of three clean shots, thresholds -4 to -15, said a slope of 0 mm/m and a patch
-    # of |factor - 1| 4e-6 would have been seen)
-    need = max(threshold, 0.0) + k * np.log(n)
+    # a finding is supported above support_level(threshold) (report._finding): a
+    # threshold below it - the null's delta-BIC seldom positive - does not lower that (a
+    # session of three clean shots, thresholds -4 to -15, said a slope of 0 mm/m and a
+    # patch of |factor - 1| 4e-6 would have been seen)
+    need = support_level(threshold) + k * np.log(n)
     out = []
     for E in effect_cols:
         Et = E - Q0 @ (Q0.T @ E)

@@ -1011,7 +1011,7 @@ def best_extension(scores) -> CandidateScore | None:
     """The extension that could be reported: the largest delta-BIC among the refitted
     extensions above their threshold (None: none is)."""
     ext = [sc for sc in scores if sc.extension and sc.fit is not None
-           and sc.delta_bic > max(sc.threshold["threshold"], 0.0)]
+           and sc.delta_bic > scoring.support_level(sc.threshold["threshold"])]
     return max(ext, key=lambda q: q.delta_bic) if ext else None
 
 

@@ -292,22 +292,23 @@ def test_the_jump_scan_keeps_its_level_under_heavy_tails():
     assert not missed, f"seed {seed}: real jumps not found: {missed}"
 
 
-def test_a_negative_threshold_does_not_lower_the_limit():
-    """A finding needs delta-BIC over its threshold and over 0: a threshold below 0 (a
-    null whose delta-BIC is seldom positive) gives the limit of a threshold of 0, not a
-    smaller one (thresholds of -4 to -15 once gave limits near 0)."""
-    from curltrack.discover.scoring import detection_limits
+def test_a_low_threshold_does_not_lower_the_limit():
+    """A finding needs delta-BIC over its threshold and over MIN_DELTA_BIC (strong
+    evidence): a threshold below it (a null whose delta-BIC is seldom positive) gives
+    the limit of a threshold of MIN_DELTA_BIC, not a smaller one (thresholds of -4 to
+    -15 once gave limits near 0)."""
+    from curltrack.discover.scoring import MIN_DELTA_BIC, detection_limits
 
     seed = _entropy()
     rng = np.random.default_rng(seed)
     n, k = 400, 2
     J0 = rng.normal(size=(n, 3))
     E = rng.normal(size=(n, 2))
-    at0 = detection_limits(J0, [E], 0.0, k, n)[0]
-    below = detection_limits(J0, [E], -float(rng.uniform(1.0, 30.0)), k, n)[0]
-    above = detection_limits(J0, [E], 10.0, k, n)[0]
-    assert np.allclose(below, at0) and np.all(above > at0), (seed, below, at0, above)
-    # and it is the size whose noise-free chi-square gain is k ln n
+    floor = detection_limits(J0, [E], MIN_DELTA_BIC, k, n)[0]
+    below = detection_limits(J0, [E], MIN_DELTA_BIC - float(rng.uniform(1.0, 30.0)), k, n)[0]
+    above = detection_limits(J0, [E], MIN_DELTA_BIC + 10.0, k, n)[0]
+    assert np.allclose(below, floor) and np.all(above > floor), (seed, below, floor, above)
+    # and it is the size whose noise-free chi-square gain is the floor plus k ln n
     Q, _ = np.linalg.qr(J0)
     Et = E - Q @ (Q.T @ E)
-    assert np.allclose(at0 ** 2 * np.sum(Et * Et, axis=0), k * np.log(n)), seed
+    assert np.allclose(floor ** 2 * np.sum(Et * Et, axis=0), MIN_DELTA_BIC + k * np.log(n)), seed
