@@ -153,6 +153,22 @@ def test_path_step_measures_a_whole_cell_jump():
     assert unresolved[70:73].all() and not unresolved[73:].any(), f"seed {seed}"
 
 
+def _short_first_segment(rng, n_seg_range, gap_range):
+    """A 60 fps shot's first 2 s with 0.5-1.5 mm noise, a short first grid segment
+    (``n_seg_range`` frames), then a gap (``gap_range`` frames) and the second:
+    ``(t, p, noise, n_seg, seg, ok)``."""
+    sim = simulate_series(ShotModel(v0=rng.uniform(1.5, 3.0), omega0=rng.uniform(0.5, 2.5)),
+                          fps=60).data
+    t = sim.t.to_numpy()[:120]
+    noise = rng.uniform(0.5e-3, 1.5e-3)
+    p = sim[["x", "y"]].to_numpy()[:120] + rng.normal(0, noise, (120, 2))
+    n_seg = int(rng.integers(*n_seg_range))
+    seg = np.r_[np.zeros(n_seg, int), np.ones(120 - n_seg, int)]
+    ok = np.ones(120, bool)
+    ok[n_seg:n_seg + int(rng.integers(*gap_range))] = False   # the gap
+    return t, p, noise, n_seg, seg, ok
+
+
 def test_a_segment_whose_rows_scatter_is_not_placed():
     """A short segment before a gap whose rows scatter by centimetres about the path
     (a lattice that was not right, not one off by whole cells) stays unresolved, however
@@ -160,15 +176,7 @@ def test_a_segment_whose_rows_scatter_is_not_placed():
     3-4 times it (still a small part of a cell), are placed."""
     seed = int(np.random.SeedSequence().entropy % (1 << 32))
     rng = np.random.default_rng(seed)
-    sim = simulate_series(ShotModel(v0=rng.uniform(1.5, 3.0), omega0=rng.uniform(0.5, 2.5)),
-                          fps=60).data
-    t = sim.t.to_numpy()[:120]
-    noise = rng.uniform(0.5e-3, 1.5e-3)
-    p = sim[["x", "y"]].to_numpy()[:120] + rng.normal(0, noise, (120, 2))
-    n_seg = int(rng.integers(4, 9))
-    seg = np.r_[np.zeros(n_seg, int), np.ones(120 - n_seg, int)]
-    ok = np.ones(120, bool)
-    ok[n_seg:n_seg + int(rng.integers(5, 15))] = False   # the gap
+    t, p, noise, n_seg, seg, ok = _short_first_segment(rng, (4, 9), (5, 15))
     s = (0.15, 0.15)
     cells = rng.integers(-2, 3, 2) * 0.15
     clean = p.copy()
@@ -202,15 +210,7 @@ def test_a_placed_segment_off_the_path_by_millimetres_is_named():
     s = (0.15, 0.15)
     false = 0
     for _ in range(20):
-        sim = simulate_series(ShotModel(v0=rng.uniform(1.5, 3.0),
-                                        omega0=rng.uniform(0.5, 2.5)), fps=60).data
-        t = sim.t.to_numpy()[:120]
-        noise = rng.uniform(0.5e-3, 1.5e-3)
-        p = sim[["x", "y"]].to_numpy()[:120] + rng.normal(0, noise, (120, 2))
-        n_seg = int(rng.integers(5, 12))
-        seg = np.r_[np.zeros(n_seg, int), np.ones(120 - n_seg, int)]
-        ok = np.ones(120, bool)
-        ok[n_seg:n_seg + int(rng.integers(5, 12))] = False   # the gap
+        t, p, noise, n_seg, seg, ok = _short_first_segment(rng, (5, 12), (5, 12))
         cells = rng.integers(-2, 3, 2) * 0.15
         clean = p.copy()
         clean[:n_seg] += cells
