@@ -1077,7 +1077,9 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         seen = (f" ({int(ok.sum())} of {n} {'fields' if (fld >= 0).any() else 'frames'} "
                 f"measured" + (f"; most lost: {lost[0][0]}, {len(lost[0][1])}" if lost else "")
                 + ")")
-        raise TrackingError(f"{how} better than ~{1e3 * shot['origin_sigma_m']:.0f} mm{seen}: "
+        size = (f"better than ~{1e3 * shot['origin_sigma_m']:.0f} mm"
+                if shot["origin_sigma_m"] < 1.0 else "to within a metre")
+        raise TrackingError(f"{how} {size}{seen}: "
                             "give --start-frame at a frame where the rock and the grid are "
                             "seen", path=path, where=f"frames 0-{frame[ok][0]}")
     # the origin's error is every row's (a fit to the first frames, extrapolated or not);
