@@ -172,29 +172,40 @@ def _short_first_segment(rng, n_seg_range, gap_range):
 def test_a_segment_whose_rows_scatter_is_not_placed():
     """A short segment before a gap whose rows scatter by centimetres about the path
     (a lattice that was not right, not one off by whole cells) stays unresolved, however
-    close its mean lies to a whole cell; the same rows with the reference's noise, or
-    3-4 times it (still a small part of a cell), are placed."""
+    close its mean lies to a whole cell, and is never placed at a wrong cell; the same
+    rows with the reference's noise, or 3-4 times it (still a small part of a cell), are
+    placed.  Over 10 draws: 4-8 rows test their scatter only roughly (400 draws: one
+    noisier side not placed, one scattering side placed - at its right cells), so one
+    draw of each may go the other way."""
     seed = int(np.random.SeedSequence().entropy % (1 << 32))
     rng = np.random.default_rng(seed)
-    t, p, noise, n_seg, seg, ok = _short_first_segment(rng, (4, 9), (5, 15))
     s = (0.15, 0.15)
-    cells = rng.integers(-2, 3, 2) * 0.15
-    clean = p.copy()
-    clean[:n_seg] += cells
-    shift, unresolved, _ = resolve_segments(t, clean, seg, ok, s)
-    assert not unresolved.any() and np.allclose(shift[:n_seg], -cells), f"seed {seed}"
-    # rows noisier than the reference's but a small part of a cell (a hand-held clip's
-    # side after a loss: 2.2 mm against 1.1 mm) are a right lattice: placed
-    noisy = clean.copy()
-    noisy[:n_seg] += rng.normal(0, rng.uniform(3.0, 4.0) * noise, (n_seg, 2))
-    shift, unresolved, _ = resolve_segments(t, noisy, seg, ok, s)
-    assert not unresolved.any() and np.allclose(shift[:n_seg], -cells), \
-        f"seed {seed}: noisier rows not placed"
-    wild = clean.copy()
-    wild[:n_seg] += rng.normal(0, rng.uniform(0.02, 0.05), (n_seg, 2))
-    wild[:n_seg] -= wild[:n_seg].mean(axis=0) - clean[:n_seg].mean(axis=0)  # mean kept
-    shift, unresolved, _ = resolve_segments(t, wild, seg, ok, s)
-    assert unresolved[:n_seg].all() and not shift.any(), f"seed {seed}: placed {shift[0]}"
+    noisy_refused, wild_placed = 0, 0
+    for _ in range(10):
+        t, p, noise, n_seg, seg, ok = _short_first_segment(rng, (4, 9), (5, 15))
+        cells = rng.integers(-2, 3, 2) * 0.15
+        clean = p.copy()
+        clean[:n_seg] += cells
+        shift, unresolved, _ = resolve_segments(t, clean, seg, ok, s)
+        assert not unresolved.any() and np.allclose(shift[:n_seg], -cells), f"seed {seed}"
+        # rows noisier than the reference's but a small part of a cell (a hand-held
+        # clip's side after a loss: 2.2 mm against 1.1 mm) are a right lattice: placed
+        noisy = clean.copy()
+        noisy[:n_seg] += rng.normal(0, rng.uniform(3.0, 4.0) * noise, (n_seg, 2))
+        shift, unresolved, _ = resolve_segments(t, noisy, seg, ok, s)
+        placed = not unresolved.any()
+        assert not placed or np.allclose(shift[:n_seg], -cells), f"seed {seed}"
+        noisy_refused += not placed
+        wild = clean.copy()
+        wild[:n_seg] += rng.normal(0, rng.uniform(0.02, 0.05), (n_seg, 2))
+        wild[:n_seg] -= wild[:n_seg].mean(axis=0) - clean[:n_seg].mean(axis=0)  # mean kept
+        shift, unresolved, _ = resolve_segments(t, wild, seg, ok, s)
+        placed = not unresolved[:n_seg].all()
+        assert not placed or np.allclose(shift[:n_seg], -cells), \
+            f"seed {seed}: placed at a wrong cell {shift[0]}"
+        wild_placed += placed
+    assert noisy_refused <= 1, f"seed {seed}: noisier rows not placed in {noisy_refused} of 10"
+    assert wild_placed <= 1, f"seed {seed}: scattering rows placed in {wild_placed} of 10"
 
 
 def test_a_placed_segment_off_the_path_by_millimetres_is_named():
