@@ -49,7 +49,6 @@ import numpy as np
 
 from ..errors import CurltrackError, InputError
 from . import scoring
-from .scoring import support_level
 from .candidates import build_candidates, untested
 from .model import JointModel, _shot_of
 from .results import DiscoveryReport, Finding
@@ -211,8 +210,8 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
             predict_heldout(sc)
 
     for sc in scores:
-        if sc._refine is not None and \
-                sc.delta_bic_linear >= support_level(sc.threshold["threshold"]) - NONLINEAR_MARGIN:
+        need = scoring.support_level(sc.threshold["threshold"]) - NONLINEAR_MARGIN
+        if sc._refine is not None and sc.delta_bic_linear >= need:
             refine(sc)
     # and the candidates the scan ranks first, whatever their thresholds: a strong
     # effect's misfit persists in the baseline's residuals, so their threshold was
@@ -226,7 +225,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     # once some candidate clears its threshold, every rival is fitted too: a name needs
     # its delta-BIC ahead of the others' (report.rivals), and far from the null the
     # linear gain can understate a rival several-fold (a weak patch next to a pick)
-    if any(sc.fit is not None and sc.delta_bic > support_level(sc.threshold["threshold"])
+    if any(sc.fit is not None and sc.delta_bic > scoring.support_level(sc.threshold["threshold"])
            for sc in scores):
         for sc in scores:
             if sc._refine is not None and sc.fit is None:

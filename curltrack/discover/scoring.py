@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import numpy as np
 
-#: per-candidate false-alarm level of the bootstrap threshold
 #: Least delta-BIC a candidate needs to be supported, whatever its look-elsewhere
 #: threshold: 6 on the 2 ln(Bayes factor) scale is "strong" evidence (Kass & Raftery
 #: 1995), below it "positive" at most.  A bootstrap threshold can sit far below it (an
@@ -33,6 +32,7 @@ import numpy as np
 #: coupling at delta-BIC 1.7 over a threshold of 0.6 was "extended" on a tracked
 #: camcorder clip whose shot had none (session 38).
 MIN_DELTA_BIC = 6.0
+#: per-candidate false-alarm level of the bootstrap threshold
 CANDIDATE_LEVEL = 0.01
 N_BOOT = 500
 BLOCK_FRAMES = 10

@@ -729,7 +729,7 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
     row of the shot 13 mm off through the origin they placed).  Returns the measured
     frames' indices.
     """
-    from .segments import resolve_segments
+    from .segments import MISFIT_Z, resolve_segments
 
     seg = np.array([r.segment for r in records])
     spacing = (calib.spacing_x_m, calib.spacing_y_m)
@@ -773,7 +773,7 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
     ok &= ~unresolved
     centre[unresolved] = np.nan
     warnings.extend(f"{path}: {n}" for n in notes)
-    # a segment placed in whole cells whose path still misses by more than 3 sigma: its
+    # a segment placed in whole cells whose path still misses by more than MISFIT_Z: its
     # lattice is off the reference's by that much, an error its frames share - where
     # they are the first (the release's), every row through the origin they place
     off = ok & np.any(misfit > 0, axis=1)
@@ -781,7 +781,8 @@ def _resolve_cells(records, t, centre, ok, calib, warnings, path, settings):
         records[i].status = (
             f"grid: a stretch of its own between losses of the grid, "
             f"{1e3 * float(np.hypot(*misfit[i])):.1f} mm off the rock's path through the "
-            "others (beyond 3 sigma of a whole number of cells): a lattice not theirs")
+            f"others (beyond {MISFIT_Z:g} sigma of a whole number of cells): a lattice "
+            "not theirs")
     ok &= ~off
     centre[off] = np.nan
     return np.flatnonzero(ok)
