@@ -130,6 +130,44 @@ def detection_limits(J0, effect_cols, threshold: float, k, n: int) -> list:
     return out
 
 
+#: rows taken out of a candidate's chi-square gain before its evidence is judged robust:
+#: the ones that carry most of it.  An effect on the rock's motion (an impulse, a stretch
+#: of other friction, a slope) moves every row after it, so its gain is spread over tens
+#: to hundreds of rows; an instrument's glitch touches one to a few (a tracker's first
+#: rows after the release, a mistracked pair of fields)
+FEW_ROWS = 3
+
+
+def without_few_rows(share, groups=None, few: int = FEW_ROWS):
+    """Chi-square gain without the ``few`` rows that carry most of it.
+
+    Parameters
+    ----------
+    share : (n,) or (n, B) array
+        Each residual's part of the gain: its square before the candidate minus after.
+    groups : (n,) array of int, optional
+        The row (one frame of one shot) of each residual: x, y and theta of a frame are
+        one row, taken out together (a tracker's bad frame is bad in all of them).
+        Without, each residual is a row.
+    few : int
+
+    Returns
+    -------
+    float or (B,) array
+        The sum of ``share``, less the ``few`` largest positive sums over rows.
+    """
+    share = np.asarray(share, dtype=float)
+    if groups is not None:
+        order = np.argsort(groups, kind="stable")
+        _, starts = np.unique(np.asarray(groups)[order], return_index=True)
+        share = np.add.reduceat(share[order], starts, axis=0)
+    if share.shape[0] <= few:
+        return np.zeros(share.shape[1:]) if share.ndim > 1 else 0.0
+    top = -np.partition(-share, few - 1, axis=0)[:few]
+    out = share.sum(axis=0) - np.clip(top, 0.0, None).sum(axis=0)
+    return out if share.ndim > 1 else float(out)
+
+
 def scan_gain(bases, r):
     """Linearised chi-square gain of each scan location for residual vector(s) ``r``.
 
@@ -190,7 +228,8 @@ def block_resample(r, segments, rng, n_boot: int = N_BOOT, block: int = BLOCK_FR
 
 
 def bootstrap_threshold(bases, r0, segments, k, n: int, rng,
-                        level: float = CANDIDATE_LEVEL, n_boot: int = N_BOOT) -> dict:
+                        level: float = CANDIDATE_LEVEL, n_boot: int = N_BOOT,
+                        groups=None) -> dict:
     """Look-elsewhere-calibrated delta-BIC threshold for one candidate.
 
     Parameters
@@ -209,12 +248,15 @@ def bootstrap_threshold(bases, r0, segments, k, n: int, rng,
     rng : numpy Generator
     level : float
         False-alarm probability of the threshold.
+    groups : (n,) array of int, optional
+        The row of each residual (:func:`without_few_rows`).
 
     Returns
     -------
     dict
-        ``threshold`` (delta-BIC), ``level``, ``n_boot``, ``n_locations`` and
-        ``null_mean`` (mean of the null's largest delta-BIC).
+        ``threshold`` (delta-BIC), ``level``, ``n_boot``, ``n_locations``, ``null_mean``
+        (mean of the null's largest delta-BIC) and ``threshold_few_rows``: the same
+        quantile of that largest fit's delta-BIC without its :data:`FEW_ROWS` best rows.
     """
     if not bases or sum(b.shape[1] for b in bases) == 0:
         return {"threshold": np.inf, "level": level, "n_boot": 0,
@@ -223,7 +265,18 @@ def bootstrap_threshold(bases, r0, segments, k, n: int, rng,
     star = block_resample(r0, segments, rng, n_boot)
     # the bootstrap's baseline refit removes the part of r* in span(J0); bases are
     # orthogonal to J0 already, so projecting r* directly is the same thing.
-    stats = (scan_gain(bases, star) - pen[:, None]).max(axis=0)
+    all_stats = scan_gain(bases, star) - pen[:, None]
+    best = all_stats.argmax(axis=0)
+    stats = all_stats[best, np.arange(n_boot)]
+    # the same statistic without the few rows that carry most of each replicate's best
+    # fit (:func:`without_few_rows`), as the data's is judged
+    robust = np.empty(n_boot)
+    for b in np.unique(best):
+        cols = np.flatnonzero(best == b)
+        r = star[:, cols]
+        f = bases[b] @ (bases[b].T @ r)
+        robust[cols] = without_few_rows(r * r - (r - f) ** 2, groups) - pen[b]
     q = float(np.quantile(stats, 1.0 - level))
     return {"threshold": q, "level": level, "n_boot": n_boot, "n_locations": len(bases),
-            "null_mean": float(stats.mean())}
+            "null_mean": float(stats.mean()),
+            "threshold_few_rows": float(np.quantile(robust, 1.0 - level))}

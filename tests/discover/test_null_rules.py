@@ -245,3 +245,41 @@ def test_a_baseline_at_its_bound_is_never_none():
     assert rep["verdict"] == "unexplained", (seed, rep["verdict"])
     assert rep["unexplained"]["baseline_at_bound"], seed
     assert any("curl the way they spin" in w for w in rep["warnings"]), seed
+
+
+def test_a_finding_resting_on_a_few_rows_is_not_named():
+    """A tracker's first rows after the release are often off together (the rock still in
+    the hand's shadow, the origin extrapolated to them): 2-3 rows 5-9 sigma off, fading.
+    A 'pick' just before them fits them away; the bootstrap, which resamples the noise
+    as if the same everywhere, let it clear its threshold in 11 of 40 such clean shots
+    (and in 5 of 8 picks on clean shots tracked through real cameras).  Judged by its
+    gain without the rows that carry most of it, against the same statistic of the null,
+    it is not named - while the few-rows statistic itself is right: a mid-shot pick's
+    gain is spread over the rows after it."""
+    from dataclasses import replace
+
+    from curltrack.discover import discover
+    from curltrack.discover.scoring import FEW_ROWS, without_few_rows
+    from discover._synth import NOISE_M, draw_model, make_series
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    share = rng.normal(0.0, 1.0, 200)
+    top = np.sort(share)[::-1][:FEW_ROWS]
+    assert np.isclose(without_few_rows(share), share.sum() - top[top > 0].sum()), seed
+    assert np.allclose(without_few_rows(np.stack([share, -share], 1)),
+                       [without_few_rows(share), without_few_rows(-share)]), seed
+
+    named = []
+    for _ in range(10):
+        s = make_series(draw_model(rng), rng=rng)
+        d = s.data.copy()
+        rows = d.index[(d.ok == 1) & (d.t > 0)][: int(rng.integers(2, 4))]
+        size, angle = rng.uniform(5, 9) * NOISE_M, rng.uniform(0, 2 * np.pi)
+        for j, row in enumerate(rows):
+            d.loc[row, "x"] += size * np.cos(angle) * (1 - j / 3)
+            d.loc[row, "y"] += size * np.sin(angle) * (1 - j / 3)
+        rep = discover([replace(s, data=d)], seed=int(rng.integers(1 << 30)))
+        if rep["verdict"] == "pick":
+            named.append(rep.summary()["findings"][0]["params"]["t_s"])
+    assert not named, (seed, named)
