@@ -16,7 +16,7 @@ import pandas as pd
 
 from .errors import ParameterError
 from .physics.dynamics import MAX_DURATION_S
-from .instrument import Sampling, _check_class, draw_noise
+from .instrument import PERSISTING_NOISE_CLASSES, Sampling, _check_class, draw_noise
 from .physics.effects import as_effects
 from .series import Series, make_meta
 
@@ -64,7 +64,7 @@ def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
         Seed of the noise generator (numpy default_rng).
     tail_s : float
         Seconds of rest recorded after both motions have stopped.
-    noise_class : {"white", "ar1", "steps", "heavy", "vibration", "quantised"}
+    noise_class : {"white", "ar1", "steps", "heavy", "tracked", "vibration", "quantised"}
         How the instrument errs (:mod:`curltrack.instrument`).
     sampling : Sampling, optional
         Irregular sampling (rate, jitter, gaps, first row after release); overrides
@@ -146,11 +146,16 @@ def simulate_series(model, effects=(), fps: float = 30.0, noise_m: float = 0.0,
         theta[:] = np.nan
     data = pd.DataFrame({"frame": frame, "t": t, "x": x, "y": y, "theta": theta,
                          "ok": np.ones(n, dtype=int)})
-    if noise_m > 0 and noise_class == "white":
+    # (what the instrument states: a white one's sigma, a tracker's - errors that
+    # persist - its rows' whole error)
+    stated = noise_class in ("white", *PERSISTING_NOISE_CLASSES)
+    if noise_m > 0 and stated:
         data["sigma_xy"] = noise_m
-    if noise_rad > 0 and noise_class == "white" and theta_measured:
+    if noise_rad > 0 and stated and theta_measured:
         data["sigma_theta"] = noise_rad
     extra = {} if theta_measured else {"theta_measured": False}
+    if noise_class in PERSISTING_NOISE_CLASSES:
+        extra["noise_persists"] = True
     meta = make_meta(
         fps, int(frame[-1]) + 1,
         t_stop_translation=float(stops[0]),

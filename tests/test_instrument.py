@@ -72,6 +72,30 @@ def test_vibration_and_quantised_classes():
         draw_noise("quantised", t, 0.003, rng)
 
 
+def test_tracked_class_is_white_plus_a_slow_part_and_says_it_persists():
+    """tracked: sigma in all over many draws; the rows' scatter (second differences) shows
+    only the white part, less than sigma; the series says its noise persists and states
+    its rows' sigma, as the tracker's sidecar and columns do."""
+    from curltrack.instrument import TRACKED_RATIO
+    from curltrack.simulate import simulate_series
+
+    seed = _seed()
+    rng = np.random.default_rng(seed)
+    t = np.arange(0, 6, 1 / 30)
+    draws = np.array([draw_noise("tracked", t, 0.002, rng) for _ in range(400)])
+    assert np.sqrt(np.mean(draws**2)) == pytest.approx(0.002, rel=0.1), seed
+    white = np.sqrt(np.mean(np.diff(draws, 2, axis=1) ** 2) / 6.0)
+    # white part 0.002 / sqrt(1 + r^2), r log-uniform in 0.5-4: 0.24-0.89 of sigma
+    assert 0.002 / np.sqrt(1 + TRACKED_RATIO[1] ** 2) < white < 0.002 / np.sqrt(1.25), (
+        seed, white)
+    s = simulate_series(ShotModel(v0=1.8, omega0=1.5), noise_m=0.002, noise_rad=0.005,
+                        noise_class="tracked", seed=int(rng.integers(1 << 30)))
+    assert s.meta["noise_persists"] is True, seed
+    assert np.allclose(s.data["sigma_xy"], 0.002) and np.allclose(s.data["sigma_theta"], 0.005)
+    assert "noise_persists" not in simulate_series(ShotModel(v0=1.8, omega0=1.5),
+                                                   noise_m=0.002, noise_class="ar1").meta
+
+
 def test_sampling_jitter_gaps_and_late_start():
     seed = _seed()
     rng = np.random.default_rng(seed)

@@ -100,7 +100,8 @@ def simulate(
     fps: Optional[float] = typer.Option(None, "--fps", help="Frame rate (default: rig or 30)."),
     tail_s: float = typer.Option(1.0, "--tail-s", help="Rest recorded after the stop (s)."),
     noise_class: str = typer.Option("white", "--noise-class",
-                                    help="white | ar1 | steps | heavy | vibration | quantised."),
+                                    help="white | ar1 | steps | heavy | tracked | "
+                                         "vibration | quantised."),
     jitter_s: float = typer.Option(0.0, "--jitter-s", help="Timestamp jitter, 1 sigma (s)."),
     gaps: int = typer.Option(0, "--gaps", help="Number of gaps with no rows."),
     max_gap_s: float = typer.Option(2.0, "--max-gap-s", help="Longest gap (s)."),

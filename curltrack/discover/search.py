@@ -373,8 +373,14 @@ def null_noise(base: JointModel, r0, r_alt) -> tuple[list, np.ndarray]:
                         if c in POSITION and not t and b[1] > BLOCK_FRAMES_TAU}
     took = [t and not (c in POSITION and j in persists)
             for (j, c, _), t in zip(base.segments, took)]
+    # (an instrument whose errors persist, as it says: its slow errors are what a
+    # candidate takes, so only one that took the bulk of them - as a strong effect's
+    # misfit is taken - has its residuals resampled; a spin impulse that took 83 % of a
+    # clean tracked shot's slow theta error had its threshold set at 64 by what was
+    # left, 96 by the baseline's residuals, and its delta-BIC of 89 named it)
     misfit = [b[1] <= CORRELATED_TAU and not (c in POSITION and j in persists)
-              and b[0] <= MISFIT_HALF * a[0]
+              and b[0] <= (MISFIT_EXPLAINED if base.shots[j].noise_persists
+                           else MISFIT_HALF) * a[0]
               for (j, c, _), a, b in zip(base.segments, own, left)]
     r = np.array(r0, dtype=float, copy=True)
     for (_, _, sl), m in zip(base.segments, misfit):
@@ -842,13 +848,19 @@ def _persisting(model: JointModel, pooled) -> tuple[set, set, set]:
     and the coordinates where it holds session-wide).
 
     An AR(1) model at its bound (rho = RHO_MAX) did not whiten the noise, whatever the
-    few windows say: the noise persists (for x and y together, one position fix)."""
+    few windows say: the noise persists (for x and y together, one position fix).  So
+    does every coordinate of a shot whose instrument says so
+    (:attr:`~curltrack.discover.shots.ShotData.noise_persists`)."""
     from ..series.noise import CORRELATED_TAU, at_rho_bound
 
     bound = {(j, c) for j, c, _ in model.segments if at_rho_bound(model.shots[j].noise[c])}
     flagged = bound | {(j, c) for (j, c, _), (_, tau) in zip(model.segments, pooled)
                        if tau > CORRELATED_TAU}
     persists, session = _instrument_wide(model, flagged)
+    # (and every coordinate of a shot whose instrument says its errors persist: a single
+    # tracked shot's few windows rarely show it - 3 of 45 clean shots through real
+    # cameras were 'unexplained' by its binned means, z 3.4-4.9)
+    persists |= {(j, c) for j, c, _ in model.segments if model.shots[j].noise_persists}
     return bound, persists, session
 
 
@@ -911,6 +923,9 @@ def block_lengths(model: JointModel, noise) -> list:
 
     # (a session whose noise persists in most shots: long blocks in every shot)
     bound, _, session = _persisting(model, _pooled_tau(model, noise))
+    # (and a shot whose instrument says its errors persist: a tracker's hold for 0.05 s
+    # to the whole clip, median ~0.3 s - 10-frame blocks cut them up)
+    bound |= {(j, c) for j, c, _ in model.segments if model.shots[j].noise_persists}
     bound, _ = _instrument_wide(model, bound)
     bound |= {(j, c) for j, c, _ in model.segments if c in session}
     out = []

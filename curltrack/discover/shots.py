@@ -73,6 +73,13 @@ class ShotData:
     t_stop_rotation: float | None = None
     start: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    #: the instrument's errors persist over many rows (the sidecar's ``noise_persists``;
+    #: a series tracked from video, whose sidecar names it, unless it says otherwise):
+    #: every coordinate's noise is judged as persisting (:func:`.search.residual_noise`)
+    noise_persists: bool = False
+    #: per coordinate, the instrument's own 1-sigma of each row (``sigma_xy``,
+    #: ``sigma_theta``; NaN where not given): a tracker's includes its errors' slow parts
+    stated_sigma: dict = field(default_factory=dict)
     #: what was taken off x, y (m) and theta (rad) of a series measured from another
     #: origin (:func:`_recentre`); the report gives the offsets in the series' frame
     origin: tuple = (0.0, 0.0, 0.0)
@@ -134,7 +141,7 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
     turn = float(np.max(np.abs(th - th[0]))) if th.size else 0.0
     translates = travel >= PURE_ROTATION_MAX_TRAVEL_M
     spins = turn >= MIN_ROTATION_RAD
-    use, noise, sigma = {}, {}, {}
+    use, noise, sigma, stated = {}, {}, {}, {}
     for c in COORDS:
         t_stop = t_rot if c == "theta" else t_tr
         moving = spins if c == "theta" else translates
@@ -149,6 +156,8 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
                 continue
         rows = has_theta if c == "theta" else np.ones(t.size, bool)
         col = "sigma_theta" if c == "theta" else "sigma_xy"
+        if col in d.columns:
+            stated[c] = d[col].to_numpy(float)
         noise[c], s_rows = row_sigma(
             frame[rows], obs[c][rows], t=t[rows], t_stop=t_stop, name=name, field=c,
             weights=d[col].to_numpy(float)[rows] if col in d.columns else None,
@@ -165,7 +174,10 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
                     translates=translates, spins=spins, spin=spin,
                     theta_measured=theta_measured,
                     t_stop_translation=t_tr, t_stop_rotation=t_rot, warnings=warnings,
-                    origin=origin)
+                    origin=origin,
+                    noise_persists=bool(series.meta.get("noise_persists",
+                                                        bool(series.meta.get("video")))),
+                    stated_sigma=stated)
     shot.start = _starting_values(series, shot, rig or default_rig())
     if not theta_measured and translates:
         # the side of the spin from the data: the curl's (a_T < 0 in the fit's frame is

@@ -139,7 +139,7 @@ def _pure_noise_model(kind, rate, rng, sigma=0.05):
     from curltrack.series.noise import whiten
 
     t = np.arange(0.0, rng.uniform(12, 25), 1.0 / rate)
-    shot = SimpleNamespace(t=t, use={}, noise={})
+    shot = SimpleNamespace(t=t, use={}, noise={}, noise_persists=False)
     r, segments = [], []
     for c in ("x", "y"):
         e = draw_noise(kind, t, sigma, rng)
