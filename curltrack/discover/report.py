@@ -154,7 +154,7 @@ def rivals(best, scores, margin: float = AMBIGUITY_MARGIN, r0=None) -> list:
         close_fit = (gain is not None and best.chi2_gain is not None
                      and gain >= best.chi2_gain
                      and o.delta_bic > o.threshold["threshold"] and o.linear_clears
-                     and o.robust_clears)
+                     and o.robust_clears and o.beyond_stated)
         if close_bic or close_fit:
             out.append(o.name)
     return sorted(out)
@@ -214,7 +214,7 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds, base_jump=None) -> Findin
         if not sc.per_shot:
             ok_cv = ok_cv or kw["loso_rmse_after"] < kw["loso_rmse_before"]
     kw["supported"] = bool(sc.delta_bic > support_level(thr) and sc.linear_clears
-                           and sc.robust_clears and ok_cv)
+                           and sc.robust_clears and sc.beyond_stated and ok_cv)
     if kw["supported"]:
         kw["not_named_because"] = _blockers(
             kw, cand_bounds, {c: heldout_worse_p(h0, sc.heldout["time"], c) for c in COORDS})
