@@ -496,13 +496,16 @@ def persistent_noise_warnings(inflations, smooth=frozenset(), after=None,
                 "finding is judged against it, but a verdict other than none on such data "
                 "may still be the instrument, not the rock")
 
+    def plain(name, coord, infl):
+        return (f"{name}: {coord}: the residuals hold {infl:.0f}x the low-frequency "
+                f"noise of white noise ({why(name, coord)})")
+
     def warning(name, coord, infl):
         left = None if after is None else after.get((name, coord))
         if left is None:
-            return (f"{name}: {coord}: the residuals hold {infl:.0f}x the low-frequency "
-                    f"noise of white noise ({why(name, coord)})")
+            return plain(name, coord, infl)
         if left > PERSISTENT_NOISE_WARN:
-            return (f"{warning(name, coord, infl)}; with {named} fitted, still {left:.0f}x")
+            return f"{plain(name, coord, infl)}; with {named} fitted, still {left:.0f}x"
         return (f"{name}: {coord}: the baseline's residuals hold {infl:.0f}x the "
                 f"low-frequency noise of white noise, {named}'s {left:.1f}x: the named "
                 "effect accounts for what persisted (only an instrument whose errors "

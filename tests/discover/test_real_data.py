@@ -466,3 +466,24 @@ def test_an_instrument_whose_errors_persist_is_held_to_its_stated_sigma():
     # scatter: r is log-uniform in 0.5-4, so 44 % of draws have it, but a short slow
     # time leaves less; 30 draws without one firing is a broken generator)
     assert fired, seed
+
+
+def test_persistent_noise_warning_after_a_finding_that_leaves_it():
+    """A named finding that leaves a coordinate's low-frequency noise above the warning
+    level: the warning gives both levels (it recursed without end until session 39 -
+    a RecursionError out of ``discover`` on a tracked-class shot with a hidden
+    velocity-dependent friction)."""
+    from curltrack.discover import PERSISTENT_NOISE_WARN, persistent_noise_warnings
+
+    seed = _entropy()
+    rng = np.random.default_rng(seed)
+    before = float(rng.uniform(2, 50) * PERSISTENT_NOISE_WARN)
+    left = float(rng.uniform(1.1, 0.9 * before / PERSISTENT_NOISE_WARN) * PERSISTENT_NOISE_WARN)
+    gone = float(rng.uniform(0.1, 0.9) * PERSISTENT_NOISE_WARN)
+    out = persistent_noise_warnings([("a.csv", "x", before), ("a.csv", "y", before),
+                                     ("a.csv", "theta", 0.5 * PERSISTENT_NOISE_WARN)],
+                                    after={("a.csv", "x"): left, ("a.csv", "y"): gone},
+                                    named="pick")
+    assert len(out) == 2, (seed, out)
+    assert f"still {left:.0f}x" in out[0] and f"{before:.0f}x" in out[0], (seed, out[0])
+    assert "accounts for what persisted" in out[1], (seed, out[1])
