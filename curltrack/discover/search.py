@@ -961,7 +961,9 @@ def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
     noise and the gain shrinks with it; with a real effect they are noise-like and
     nothing changes.  The threshold calibrates the linearised scan, so where the scale
     is not 1 the data's linearised delta-BIC under it must clear the threshold as well
-    (``linear_clears``).
+    (``linear_clears``).  And the evidence must stand without the few rows that carry
+    most of it (:func:`_judge_few_rows`), and move the path beyond the errors a
+    persisting instrument states for its rows (:func:`_judge_stated`).
     """
     if score.fit is None:
         return
