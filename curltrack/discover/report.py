@@ -200,6 +200,8 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds, base_jump=None) -> Findin
     if sc.fit is None:
         return Finding(**kw)
     kw.update(rms_after=_rms_by_coord(base, sc.fit.r_raw),
+              delta_bic_without_few_rows=sc.delta_bic_without_few_rows,
+              path_change_stated=sc.path_change_stated,
               heldout_rmse_after=sc.heldout["time"]["scalar"],
               heldout_after_by_coord={c: sc.heldout["time"][c] for c in COORDS},
               structure_after={"p_min_adjusted": sc.structure_after.p_min_adjusted,

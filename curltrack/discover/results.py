@@ -66,6 +66,13 @@ class Finding:
         (the refit and the held-out test ask more).
     where : dict or None
         Where the unexplained misfit sits (``unexplained`` only).
+    delta_bic_without_few_rows : float or None
+        The refitted candidate's delta-BIC without the 3 frames that carry most of its
+        gain (it must clear the bootstrap's ``threshold_few_rows`` too).
+    path_change_stated : float or None
+        The largest change the candidate makes to the fitted path, in units of the sigma
+        the instrument states for its rows (only where every coordinate's errors persist
+        and are stated: 2 or less is not supported).
     fit : object
         The extended model's fit (``FitOut``), for figures; not serialised.
     """
@@ -95,6 +102,8 @@ class Finding:
     extension: bool | None = None
     detection_limit: dict | None = None
     where: dict | None = None
+    delta_bic_without_few_rows: float | None = None
+    path_change_stated: float | None = None
     fit: object = field(default=None, compare=False, repr=False)
 
     @property
@@ -112,6 +121,9 @@ class Finding:
             out["loso_rmse_after"] = self.loso_rmse_after
         if self.structure_after is not None:
             out["structure_after"] = self.structure_after
+        for k in ("delta_bic_without_few_rows", "path_change_stated"):
+            if getattr(self, k) is not None:
+                out[k] = getattr(self, k)
         out["supported"] = self.supported
         if self.not_named_because is not None:
             out["not_named_because"] = self.not_named_because

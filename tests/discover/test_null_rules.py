@@ -280,6 +280,9 @@ def test_a_finding_resting_on_a_few_rows_is_not_named():
             d.loc[row, "x"] += size * np.cos(angle) * (1 - j / 3)
             d.loc[row, "y"] += size * np.sin(angle) * (1 - j / 3)
         rep = discover([replace(s, data=d)], seed=int(rng.integers(1 << 30)))
+        refitted = [f for f in rep.summary()["findings"] if "structure_after" in f]
+        # (REPORT.json says what each refitted candidate's evidence is without them)
+        assert all(np.isfinite(f["delta_bic_without_few_rows"]) for f in refitted), seed
         if rep["verdict"] == "pick":
             named.append(rep.summary()["findings"][0]["params"]["t_s"])
     assert not named, (seed, named)
