@@ -27,6 +27,7 @@ import numpy as np
 from scipy import ndimage, stats
 
 from ..series.noise import CORRELATED_TAU
+from .shots import stated_sigma_rows
 
 #: family-wise level at which residuals are called structured
 STRUCTURE_LEVEL = 0.01
@@ -324,10 +325,9 @@ def _stated(shot, c: str) -> float:
     where it says its errors persist (0 otherwise): a tracker's includes the slow parts
     of its errors, which the rows' scatter does not show (measured on 67 clips through
     real cameras: 0.5-4x the white part, median 1.4x)."""
-    v = shot.stated_sigma.get(c) if shot.noise_persists else None
+    v = stated_sigma_rows(shot, c)
     if v is None:
         return 0.0
-    v = v[shot.use[c]]
     v = v[np.isfinite(v) & (v > 0)]
     return float(np.median(v)) if v.size else 0.0
 

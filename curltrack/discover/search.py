@@ -23,7 +23,7 @@ from ..errors import CurltrackError
 from . import scoring
 from .model import FitOut, JointModel
 from .residuals import structure_tests
-from .shots import COORDS
+from .shots import COORDS, stated_sigma_rows
 
 N_TIME_BLOCKS = 5
 #: candidates whose linear delta-BIC is this far below threshold skip the nonlinear fit
@@ -849,7 +849,7 @@ def _pooled_tau(model: JointModel, noise) -> list:
 def _persisting(model: JointModel, pooled) -> tuple[set, set, set]:
     """Segments ``(shot, coord)`` whose noise persists, from ``pooled`` (``(inflation,
     tau)`` per segment, x's and y's tau pooled: :func:`_pooled_tau`): (those whose AR(1)
-    model sits at its rho bound, those whose noise persists - that, or tau above
+    model sits at its rho bound or whose instrument says so, those whose noise persists - that, or tau above
     :data:`~curltrack.series.noise.CORRELATED_TAU`, widened by :func:`_instrument_wide` -
     and the coordinates where it holds session-wide).
 
@@ -863,11 +863,13 @@ def _persisting(model: JointModel, pooled) -> tuple[set, set, set]:
     flagged = bound | {(j, c) for (j, c, _), (_, tau) in zip(model.segments, pooled)
                        if tau > CORRELATED_TAU}
     persists, session = _instrument_wide(model, flagged)
-    # (and every coordinate of a shot whose instrument says its errors persist: a single
-    # tracked shot's few windows rarely show it - 3 of 45 clean shots through real
-    # cameras were 'unexplained' by its binned means, z 3.4-4.9)
-    persists |= {(j, c) for j, c, _ in model.segments if model.shots[j].noise_persists}
-    return bound, persists, session
+    # (and every coordinate of a shot whose instrument says its errors persist, in both
+    # sets, though not in the session's majority: a single tracked shot's few windows
+    # rarely show it - 3 of 45 clean shots through real cameras were 'unexplained' by
+    # its binned means, z 3.4-4.9 - and 10-frame bootstrap blocks cut up errors that
+    # hold for 0.05 s to the whole clip, median ~0.3 s)
+    declared = {(j, c) for j, c, _ in model.segments if model.shots[j].noise_persists}
+    return bound | declared, persists | declared, session
 
 
 def _instrument_wide(model: JointModel, flagged: set) -> tuple[set, set]:
@@ -929,9 +931,6 @@ def block_lengths(model: JointModel, noise) -> list:
 
     # (a session whose noise persists in most shots: long blocks in every shot)
     bound, _, session = _persisting(model, _pooled_tau(model, noise))
-    # (and a shot whose instrument says its errors persist: a tracker's hold for 0.05 s
-    # to the whole clip, median ~0.3 s - 10-frame blocks cut them up)
-    bound |= {(j, c) for j, c, _ in model.segments if model.shots[j].noise_persists}
     bound, _ = _instrument_wide(model, bound)
     bound |= {(j, c) for j, c, _ in model.segments if c in session}
     out = []
@@ -975,8 +974,9 @@ def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
         scale[sl] = 1.0 / np.sqrt(infl)
     score._scale = scale
     _judge_stated(score, base, fit0)
+    groups = row_groups(base)
     if np.all(scale == 1.0):
-        _judge_few_rows(score, base, fit0, scale)
+        _judge_few_rows(score, fit0, scale, groups)
         return
     gain = float(np.sum((fit0.r * scale) ** 2) - np.sum((score.fit.r * scale) ** 2))
     n = fit0.n
@@ -989,7 +989,7 @@ def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
                                                   _no_shorter(block_lengths(base, noise_raw),
                                                               score._blocks), ks, n, rng,
                                                   level=_level(score._refine[0]),
-                                                  n_boot=n_boot, groups=row_groups(base))
+                                                  n_boot=n_boot, groups=groups)
     # the threshold is a quantile of the *linearised* scan's best delta-BIC (exact near
     # the null).  Noise that persists is far from that: its excursions are many AR(1)
     # sigmas, and a nonlinear refit with its locations free can gain more on them than
@@ -1004,7 +1004,7 @@ def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
         score.note += (f"; its linearised delta-BIC {lin:.1f} (the statistic the threshold "
                        f"calibrates) does not clear the threshold: not supported")
     score.structure_after = structure_tests(segments_of(score._model, score.fit, noise))
-    _judge_few_rows(score, base, fit0, scale)
+    _judge_few_rows(score, fit0, scale, groups)
 
 
 #: a candidate that moves the fitted path by no more than this many times the sigma the
@@ -1024,9 +1024,7 @@ def _judge_stated(score: CandidateScore, base: JointModel, fit0: FitOut) -> None
     stated sigma_xy of 0.9-5 mm."""
     worst = 0.0
     for j, c, sl in base.segments:
-        shot = base.shots[j]
-        v = shot.stated_sigma.get(c) if shot.noise_persists else None
-        v = None if v is None else v[shot.use[c]]
+        v = stated_sigma_rows(base.shots[j], c)
         if v is None or not np.all(np.isfinite(v) & (v > 0)):
             return
         change = np.abs(fit0.r_raw[sl] - score.fit.r_raw[sl])
@@ -1046,7 +1044,7 @@ def row_groups(model: JointModel) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros(0, dtype=int)
 
 
-def _judge_few_rows(score: CandidateScore, base: JointModel, fit0: FitOut, scale) -> None:
+def _judge_few_rows(score: CandidateScore, fit0: FitOut, scale, groups) -> None:
     """Whether ``score``'s evidence stands without the rows that carry most of it
     (:func:`.scoring.without_few_rows`): its delta-BIC without them must clear the level
     that chance reaches so (the bootstrap's ``threshold_few_rows``).
@@ -1055,9 +1053,10 @@ def _judge_few_rows(score: CandidateScore, base: JointModel, fit0: FitOut, scale
     shots through real cameras drew half their chi-square gain from 1 to 4 rows within
     0.15 s of the release (the tracker's first rows), fitted by an 'impulse' before
     them.  The bootstrap cannot hold such errors: it resamples the noise as if the
-    same everywhere, and the first rows' are not."""
+    same everywhere, and the first rows' are not.  ``groups``: the row of each residual
+    (:func:`row_groups`)."""
     share = (fit0.r * scale) ** 2 - (score.fit.r * scale) ** 2
-    dbic = scoring.without_few_rows(share, row_groups(base)) - score.k * np.log(fit0.n)
+    dbic = scoring.without_few_rows(share, groups) - score.k * np.log(fit0.n)
     thr = score.threshold
     # (calibrated as the data's statistic is; the absolute floor of strong evidence,
     # :func:`.scoring.support_level`, is the whole gain's: without its best rows a real

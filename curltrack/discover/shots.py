@@ -160,7 +160,7 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
             stated[c] = d[col].to_numpy(float)
         noise[c], s_rows = row_sigma(
             frame[rows], obs[c][rows], t=t[rows], t_stop=t_stop, name=name, field=c,
-            weights=d[col].to_numpy(float)[rows] if col in d.columns else None,
+            weights=stated[c][rows] if c in stated else None,
             floor=1e-6 if c == "theta" else 1e-5)
         sigma[c] = np.full(t.size, noise[c].sigma)
         sigma[c][rows] = s_rows
@@ -193,6 +193,15 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
                 warnings.append(f"{name}: the curl ({a:.2g} m/s^2) does not tell the "
                                 "spin's side within 2 sigma; taken from its sign")
     return shot
+
+
+def stated_sigma_rows(shot, c: str):
+    """The sigma the instrument states for coordinate ``c``'s rows of ``shot`` that enter
+    the fits (m or rad; NaN where not given), where it says its errors persist; else
+    None (nothing stated, or noise that does not persist: the rows' scatter is then the
+    whole of their error)."""
+    v = shot.stated_sigma.get(c) if shot.noise_persists else None
+    return None if v is None else v[shot.use[c]]
 
 
 #: an origin (the rock at t = 0) further than this from the series' zero (m, rad) is
