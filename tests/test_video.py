@@ -10,6 +10,7 @@ import pytest
 
 from curltrack.errors import VideoError
 from curltrack.video import iter_frames, probe_video, read_frame
+from curltrack.render.encode import X264_PARAMS
 
 
 def _write(path, n, fps, size=(160, 96)):
@@ -133,7 +134,7 @@ def _write_av(path, n, fps, fmt=None, start_s=0.0, size=(160, 96), live=False,
         st.width, st.height, st.pix_fmt = *size, "yuv420p"
         # (x264 on several threads: bytes that depend on the process's history)
         st.codec_context.thread_count = 1
-        st.options = {"crf": "10", "g": "1000"}
+        st.options = {"crf": "10", "g": "1000", "x264-params": X264_PARAMS}
         if times_s is not None:
             # (the encoder keeps each frame's own time only in a time base that fine)
             st.codec_context.time_base = Fraction(1, 90000)
@@ -219,7 +220,7 @@ def _woven_clip(path, rng, n=30, size=(320, 240), shift_px=None, order="tff", co
     out = av.open(str(path), "w")
     st = out.add_stream("libx264", rate=30)
     st.width, st.height, st.pix_fmt = w, h, "yuv420p"
-    st.options = {"crf": "16"}
+    st.options = {"crf": "16", "x264-params": X264_PARAMS}
     st.codec_context.thread_count = 1  # (one clip per seed, whatever ran before)
 
     def view(k):  # the scene at exposure k (half frames)
