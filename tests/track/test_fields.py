@@ -522,7 +522,7 @@ def test_the_fields_share_of_the_image_motion_and_its_sigma():
     between them give that share within 4 of its sigmas (and 5 % for the other field's
     interpolation between its rows); fields that do not give a
     share under 5 sigmas (the rule that moves own-colour fields) in nearly every draw."""
-    from curltrack.track.results import FIELD_SHARE_Z, field_motion_share
+    from curltrack.track.results import field_motion_share, field_share_sure
 
     seed = int(np.random.SeedSequence().entropy % 2**32)
     rng = np.random.default_rng(seed)
@@ -535,6 +535,9 @@ def test_the_fields_share_of_the_image_motion_and_its_sigma():
         # of the other field between its rows blunts the difference: 0.81 of it at 5 Hz)
         v = np.column_stack([0.3 * np.cos(0.5 * t) + 0.3 * np.sin(2 * np.pi * f_hz * t),
                              0.3 * np.sin(2 * np.pi * f_hz * t + rng.uniform(0, 6))])
+        if k % 4 >= 2:   # (a camera panning along the sheet: the image hardly moves
+            # across it, and the share across is measured poorly - seed 1145952260)
+            v[:, 1] = 0.01 * np.sin(2 * np.pi * f_hz * t + 1.0)
         motion = v / 50.0
         path = np.column_stack([0.01 * t ** 2, 2.0 * t - 0.1 * t ** 2])
         noise = rng.normal(0.0, rng.uniform(0.3e-3, 1e-3), (t.size, 2))
@@ -545,9 +548,9 @@ def test_the_fields_share_of_the_image_motion_and_its_sigma():
         assert np.all(np.abs(np.diag(got) + share) < 4 * np.diag(sig) + 0.05 * share), \
             (seed, k, share, np.diag(got), np.diag(sig))
         if share == 0.0:
-            flagged += bool(np.all(np.abs(np.diag(got)) > FIELD_SHARE_Z * np.diag(sig)))
+            flagged += field_share_sure(got, sig)
         else:
-            assert np.all(np.abs(np.diag(got)) > FIELD_SHARE_Z * np.diag(sig)), (
+            assert field_share_sure(got, sig), (
                 seed, k, share, f_hz, np.diag(got), np.diag(sig))
     assert flagged == 0, (seed, flagged)
 
