@@ -135,13 +135,16 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     its own sigmas) with fewer than :data:`MIN_SIGMA_DOF` degrees of freedom.
     ``off_path`` ((N,) bool): rows the path through the others misses by more than
     :data:`~curltrack.track.scatter.CLIP` times their ``sigma_xy`` (wrong rows, for
-    the caller to refuse); ``n_wrong``: the rows left out of the scale.
+    the caller to refuse); ``n_wrong``: the rows left out of the scale; ``unchecked``
+    ((N,) bool): rows amid refused frames too few rows around could check
+    (:func:`~curltrack.track.scatter.path_scatter`; the caller refuses them too).
     """
     from .scatter import path_scatter
 
     n = len(t)
     out = dict(scale_xy=np.nan, scale_theta=np.nan, sigma_xy=np.full(n, np.nan),
-               sigma_theta=np.full(n, np.nan), n_wrong=0, off_path=np.zeros(n, bool))
+               sigma_theta=np.full(n, np.nan), n_wrong=0, off_path=np.zeros(n, bool),
+               unchecked=np.zeros(n, bool))
     tt = np.where(ok, t, np.nan)
     br = [b for b in (stops.t_stop_translation,) if b]
     c = path_scatter(tt, xy, pix_xy, runs=field, breaks=br)
@@ -167,6 +170,7 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
         with np.errstate(invalid="ignore"):
             wrong = c["off_path"] & (c["miss"] > PATH_CLIP * sigma_xy)
         out.update(scale_xy=c["scale"], n_wrong=int(c["clipped"]), off_path=wrong,
+                   unchecked=c["unchecked"],
                    sigma_xy=np.hypot(sigma_xy, origin_shared))
     brt = [b for b in (stops.t_stop_rotation,) if b]
     c = path_scatter(tt, theta, pix_theta, runs=field, breaks=brt)
@@ -1288,6 +1292,14 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                     f"{path}: frame(s) {{}}: off the rock's smooth path through the other "
                     f"rows by more than {PATH_CLIP:g} times sigma_xy (a lattice or marker "
                     "error) (ok = 0)")
+    # ... and a row amid refused frames that too few rows around it can check: a wrong
+    # marker or cell would not be seen (a 0.41 Mbit/s camcorder under auto exposure and
+    # a broom, sweep 2026113040 set-up 7: runs of 5-10 fields ~80 mm off, the centre
+    # placed from a marker mistaken for the other, between refused frames, ok = 1)
+    ok = _unmeasure(data, ok, np.asarray(cal["unchecked"], bool) & ok, frame, warnings,
+                    f"{path}: frame(s) {{}}: measured amid frames that were not, with too "
+                    "few measured rows around them to check them against the rock's path "
+                    "(a marker or cell error would not be seen) (ok = 0)")
     # ... and a row of one field that the other field's path misses so (the fields of
     # a frame exposed 1/60 s apart disagree where the rock crosses a still image fast)
     if (fld >= 0).any():

@@ -107,7 +107,9 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
         summed over columns), ``n`` (rows used), ``clipped`` (rows left out as wrong)
         and ``off_path`` ((N,) bool: those rows); ``miss`` ((N,) array, the units of
         ``q``): each used row's largest miss of the path over the columns (a left-out
-        row's: of the path through the others), NaN for rows not used.
+        row's: of the path through the others), NaN for rows not used; ``unchecked``
+        ((N,) bool): rows of short runs amid the fitted ones (after the first, before
+        the last of their label) that too few rows around them could judge.
     """
     t = np.asarray(t, float)
     q = np.asarray(q, float).reshape(len(t), -1)
@@ -116,7 +118,9 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
     runs = np.zeros(len(t), int) if runs is None else np.asarray(runs)
     off_path = np.zeros(len(t), bool)
     miss = np.full(len(t), np.nan)
-    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0, off_path=off_path, miss=miss)
+    unchecked = np.zeros(len(t), bool)
+    out = dict(scale=np.nan, dof=0.0, n=0, clipped=0, off_path=off_path, miss=miss,
+               unchecked=unchecked)
     num = den = 0.0
     n_used = clipped = 0
     fitted_rows = np.zeros(len(t), bool)
@@ -226,6 +230,10 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
             elif np.isfinite(spline_z[seg]).any():
                 miss[seg] = spline_miss[seg]
                 off_path[seg[spline_z[seg] > CLIP]] = True
+            else:
+                t_fit = t[fitted_rows & (runs == lab)]
+                if t_fit.size and t_fit[0] < t[seg].min() and t[seg].max() < t_fit[-1]:
+                    unchecked[seg] = True
     return out
 
 

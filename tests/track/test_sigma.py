@@ -190,6 +190,50 @@ def test_a_short_run_between_refused_frames_is_judged_by_its_neighbours():
     assert false <= max(1, 1e-3 * judged), f"seed {seed}: {false} clean rows named"
 
 
+def test_rows_amid_refused_frames_that_nothing_can_judge_are_unchecked():
+    """Short runs amid refused frames with too few measured rows around them to be
+    judged (sparse survivors of a stretch the tracker mostly refused) are ``unchecked``
+    - for the caller to refuse: a wrong marker or cell there is not seen (a camcorder
+    clip's runs of fields 80 mm off, ok = 1).  Rows of the long runs, judged short runs
+    and a shot's first rows before a gap are not."""
+    from curltrack.track.scatter import path_scatter
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    found = 0
+    for _ in range(20):
+        fps = float(rng.choice([25.0, 30.0, 59.94]))
+        # a long run, then 1.5-2.5 s the tracker mostly refused - a few rows survive,
+        # 2-5 together every 0.3-0.5 s - then a long run to the end
+        a = int(rng.uniform(1.0, 1.5) * fps)
+        b = a + int(rng.uniform(1.5, 2.5) * fps)
+        n = b + int(rng.uniform(1.0, 2.0) * fps)
+        t = np.arange(n) / fps
+        q = np.column_stack([0.01 * t ** 2, 2.0 * t - 0.1 * t ** 2])
+        sig = np.full(n, rng.uniform(2e-4, 1e-3))
+        q = q + sig[:, None] * rng.standard_normal((n, 2))
+        tt = t.copy()
+        tt[a:b] = np.nan
+        survivors = []
+        i = a + int(0.3 * fps)
+        while i < b - int(0.3 * fps):
+            k = int(rng.integers(2, 6))
+            tt[i:i + k] = t[i:i + k]
+            survivors += list(range(i, min(i + k, b)))
+            i += int(rng.uniform(0.3, 0.5) * fps)
+        out = path_scatter(tt, q, sig)
+        surv = np.array(survivors, int)
+        what = f"seed {seed}: fps {fps}, refused {a}-{b}, survivors {survivors}"
+        # (survivors next to a long run, or within NEIGHBOUR_S of its rows on both
+        # sides, are judged against it; the rest are not)
+        assert set(np.flatnonzero(out["unchecked"])) <= set(surv.tolist()), what
+        assert not out["unchecked"][:a].any() and not out["unchecked"][b:].any(), what
+        assert not (out["unchecked"] & out["off_path"]).any(), what
+        found += int(out["unchecked"].any())
+    # (most draws leave some survivors 0.6 s from any judged row)
+    assert found >= 10, f"seed {seed}: unchecked rows in {found} of 20 draws"
+
+
 @pytest.mark.slow
 def test_sigma_honest_on_a_random_camera_setup(tmp_path):
     """A set-up of the camera sweep (kind and artefacts at random), tracked to <= 2 mm:
