@@ -1296,7 +1296,9 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # marker or cell would not be seen (a 0.41 Mbit/s camcorder under auto exposure and
     # a broom, sweep 2026113040 set-up 7: runs of 5-10 fields ~80 mm off, the centre
     # placed from a marker mistaken for the other, between refused frames, ok = 1)
-    ok = _unmeasure(data, ok, np.asarray(cal["unchecked"], bool) & ok, frame, warnings,
+    # (not a frame the user clicked: the clicks say which marker is which)
+    ok = _unmeasure(data, ok, np.asarray(cal["unchecked"], bool) & ok & ~clicked, frame,
+                    warnings,
                     f"{path}: frame(s) {{}}: measured amid frames that were not, with too "
                     "few measured rows around them to check them against the rock's path "
                     "(a marker or cell error would not be seen) (ok = 0)")
