@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from curltrack.errors import VideoError
-from curltrack.video import iter_frames, probe_video, read_frame
 from curltrack.render.encode import X264_PARAMS
+from curltrack.video import iter_frames, probe_video, read_frame
 
 
 def _write(path, n, fps, size=(160, 96)):

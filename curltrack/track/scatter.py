@@ -222,18 +222,17 @@ def path_scatter(t, q, sigma, runs=None, breaks=(), fps: float | None = None) ->
             # (a lone row amid refused frames was never checked: a rendered hand-held
             # clip's frame 87, between 16 refused for their marker layout, 29 mm off
             # under a 1.3 mm sigma, with ok = 1)
-            z_seg, m_seg = _short_run(t, q, sig * scale, seg,
-                                      fitted_rows & (runs == lab), breaks)
+            fitted = fitted_rows & (runs == lab)
+            z_seg, m_seg = _short_run(t, q, sig * scale, seg, fitted, breaks)
             if z_seg is not None:
                 miss[seg] = np.fmax(miss[seg], m_seg)
                 off_path[seg[z_seg > CLIP]] = True
             elif np.isfinite(spline_z[seg]).any():
                 miss[seg] = spline_miss[seg]
                 off_path[seg[spline_z[seg] > CLIP]] = True
-            else:
-                t_fit = t[fitted_rows & (runs == lab)]
-                if t_fit.size and t_fit[0] < t[seg].min() and t[seg].max() < t_fit[-1]:
-                    unchecked[seg] = True
+            elif fitted.any() and (t[fitted].min() < t[seg].min()
+                                   and t[seg].max() < t[fitted].max()):
+                unchecked[seg] = True
     return out
 
 
