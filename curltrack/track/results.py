@@ -368,7 +368,7 @@ def image_velocity(records, t, field, ok) -> np.ndarray:
         rows = np.flatnonzero(ok & (fld == f) & np.isfinite(px).all(axis=1)
                               & np.isfinite(jac).all(axis=(1, 2)))
         if rows.size >= 3:
-            v = np.gradient(px[rows], t[rows], axis=0)
+            v = np.gradient(px[rows], t[rows], axis=0, edge_order=2)
             out[rows] = np.einsum("nij,nj->ni", jac[rows], v)
     return out
 
@@ -1332,6 +1332,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         video_format=getattr(info, "describe", lambda: None)(),
         frame_origin_lattice_m=shot["origin"].tolist(),
         origin_shared_err_m=origin_shared,
+        origin_sigma_m=float(shot["origin_sigma_m"]),
         frame_x_axis_lattice=shot["x_hat"].tolist(),
         frame_y_axis_lattice=shot["y_hat"].tolist(),
         frame_axis_source=shot["direction_source"],
