@@ -275,9 +275,21 @@ def _motion_share(d, m) -> tuple[np.ndarray, np.ndarray]:
     if keep.sum() <= k + 1:
         return share, sig
     r = (d[fit] - A @ coef)[keep]
-    cov = np.linalg.pinv(A[keep].T @ A[keep])
-    var = np.sum(r ** 2, axis=0) / (keep.sum() - k - 1)            # per column of d
-    sig = np.sqrt(np.outer(var, np.diag(cov)[1:]))
+    X = A[keep]
+    bread = np.linalg.pinv(X.T @ X)
+    # (the sandwich with the residuals' lag-1 products: neighbouring differences share
+    # the other field's row that both are interpolated from - lag-1 correlation ~1/6,
+    # no further - and the image's motion is smooth, so plain least squares understated
+    # the share's sigma: seed 4265661770's unit draw, 2000 noise draws on one motion,
+    # the poorly measured term's error over sigma RMS ~1.3 -> 1.10, over 4 sigma 0.1 %)
+    dof = keep.sum() / max(keep.sum() - k - 1, 1)
+    sig = np.empty((k, k))
+    for j in range(k):
+        xr = X * r[:, j:j + 1]
+        meat = xr.T @ xr
+        lag = xr[:-1].T @ xr[1:]
+        meat = meat + lag + lag.T
+        sig[j] = np.sqrt(np.maximum(np.diag(bread @ meat @ bread)[1:] * dof, 0.0))
     return coef[1:].T, sig
 
 
