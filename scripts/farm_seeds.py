@@ -102,8 +102,8 @@ def main(argv=None) -> int:
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg")
     env.pop("CURLTRACK_TEST_SEED", None)   # fresh draws, never a replay
     cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
-    if not a.slow:
-        cmd += ["-m", "not slow"]
+    # (the project's addopts deselect slow tests: a later -m overrides them)
+    cmd += ["-m", "slow or not slow" if a.slow else "not slow"]
     if a.workers > 1:
         cmd += ["-n", str(a.workers)]
     if a.keyword:

@@ -1311,8 +1311,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     # (not a frame the user clicked: the clicks say which marker is which)
     ok = _unmeasure(data, ok, np.asarray(cal["unchecked"], bool) & ok & ~clicked, frame,
                     warnings,
-                    f"{path}: frame(s) {{}}: measured amid frames that were not, with too "
-                    "few measured rows around them to check them against the rock's path "
+                    f"{path}: frame(s) {{}}: measured amid or after frames that were not, "
+                    "with too few measured rows around them to check them against the rock's path "
                     "(a marker or cell error would not be seen) (ok = 0)")
     # ... and a row of one field that the other field's path misses so (the fields of
     # a frame exposed 1/60 s apart disagree where the rock crosses a still image fast)

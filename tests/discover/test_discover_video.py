@@ -8,7 +8,8 @@ import pytest
 
 
 def _tracked(tmp_path, seed, effects):
-    """Simulate a short shot (fits the rendered field of view), render, track."""
+    """Simulate a short shot (fits the rendered field of view) from ``seed`` - its speed
+    and spin's sign drawn - render it over the default rig, track it."""
     render = pytest.importorskip("curltrack.render")
     track = pytest.importorskip("curltrack.track")
     if not hasattr(track, "track_video") or not hasattr(render, "render_video"):
@@ -28,27 +29,30 @@ def _tracked(tmp_path, seed, effects):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [0, 1])
-def test_video_with_hidden_patch_is_found(tmp_path, seed):
+def test_video_with_hidden_patch_is_found(tmp_path):
+    """A patch 40 % stickier over 0.8 m, placed at random on the first metres of the
+    path, is named and placed from a rendered and tracked video."""
     from curltrack.discover import discover
     from curltrack.physics import Effect
 
-    y_a = float(np.random.default_rng(100 + seed).uniform(0.8, 1.2))
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    y_a = float(np.random.default_rng(seed + 1).uniform(0.8, 1.2))
     patch = {"y_start_m": y_a, "y_end_m": y_a + 0.8, "factor": 1.4}
     tracked = _tracked(tmp_path, seed, [Effect("friction_patch", patch)])
     rep = discover(tracked, seed=seed)
-    assert rep["verdict"] == "friction_patch", [(f["effect"], f["delta_bic"])
-                                                for f in rep["findings"]]
+    assert rep["verdict"] == "friction_patch", (seed, [(f["effect"], f["delta_bic"])
+                                                       for f in rep["findings"]])
     f = next(f for f in rep["findings"] if f["effect"] == "friction_patch")
     mid = 0.5 * (f["params"]["y_start_m"] + f["params"]["y_end_m"])
-    assert abs(mid - 0.5 * (patch["y_start_m"] + patch["y_end_m"])) < 0.5
+    assert abs(mid - 0.5 * (patch["y_start_m"] + patch["y_end_m"])) < 0.5, (seed, f["params"])
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [5, 6])
-def test_clean_tracked_video_gives_none(tmp_path, seed):
+def test_clean_tracked_video_gives_none(tmp_path):
     """No false discovery on rendered-and-tracked video (correlated tracking noise)."""
     from curltrack.discover import discover
 
+    seed = int(np.random.SeedSequence().entropy % 2**32)
     rep = discover(_tracked(tmp_path, seed, []), seed=seed)
-    assert rep["verdict"] == "none", [(f["effect"], f["delta_bic"]) for f in rep["findings"]]
+    assert rep["verdict"] == "none", (seed, [(f["effect"], f["delta_bic"])
+                                             for f in rep["findings"]])
