@@ -194,7 +194,8 @@ def _finding(sc, rms0, h0, h0_loso, base, cand_bounds, base_jump=None) -> Findin
               threshold=thr, bootstrap=sc.threshold, location_start=sc.location,
               rms_before=rms0, rms_after=None, heldout_rmse_before=h0["scalar"],
               heldout_rmse_after=None, heldout_before_by_coord={c: h0[c] for c in COORDS},
-              params=sc.params, params_err=sc.params_err, note=sc.note, nfev=sc.nfev,
+              params=sc.params, params_err=sc.params_err, note=sc.note + sc.remark,
+              nfev=sc.nfev,
               evidence=_evidence(sc, h0), fit=sc.fit, detection_limit=sc.limits,
               extension=True if getattr(sc, "extension", None) else None)
     if sc.fit is None:

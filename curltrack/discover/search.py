@@ -67,6 +67,8 @@ class CandidateScore:
     heldout: dict = field(default_factory=dict)
     structure_after: object = None
     note: str = ""
+    #: what reading the fitted parameters needs (the effect's ``remark``; after ``note``)
+    remark: str = ""
     k: int = 0
     nfev: tuple | None = None
     chi2_gain: float | None = None
@@ -755,6 +757,7 @@ def _adopt(score: CandidateScore, fit1: FitOut, m: JointModel, fit0: FitOut) -> 
         {p.name: fit1.values[p.name] for p in cand.params},
         {p.name: fit1.err(p.name) for p in cand.params}, fit1.values, fit1.err,
         score.location)
+    score.remark = cand.effect.remark(score.params, m.shots)
     score.structure_after = structure_tests(segments_of(m, fit1))
 
 

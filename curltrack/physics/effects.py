@@ -236,6 +236,28 @@ def _patch_finish(params, errs, values, err, loc):
     return params, errs
 
 
+def _patch_remark(params, shots) -> str:
+    """A patch that reaches the release or the rock's stop changes the friction at one
+    edge only: a stretch from its other edge to the far end of the path, the factor
+    inverted and the baseline's alpha by the factor, describes the path as well (a
+    tracked video's patch x1.4 over [0.83, 1.63] m, the rock stopped within it, was
+    found as x0.71 over [release, 0.84] m)."""
+    moving = translating(shots)
+    if not moving:
+        return ""
+    y_max = max(s.y_max_m for s in moving)
+    a, b, f = params["y_start_m"], params["y_end_m"], params["factor"]
+    if a <= 0.0 < b < y_max:
+        edge, side = b, "after"
+    elif 0.0 < a < y_max <= b:
+        edge, side = a, "before"
+    else:
+        return ""
+    return (f"; it reaches the {'release' if side == 'after' else 'stop'}: a step in the "
+            f"friction at y = {edge:.2f} m, which a factor {1.0 / f:.3g} on the path "
+            f"{side} it describes as well (the baseline's alpha then x{f:.3g})")
+
+
 #: widths (x the fitted one) a patch's refit is also started from, its friction deficit
 #: (1 - factor) x width kept
 PATCH_RESPREAD = (1.5, 2.0, 3.0, 4.0)
@@ -276,7 +298,7 @@ register(EffectDef(
     terms=lambda p: {"patch": (p["y_start_m"], p["y_end_m"], p["factor"])},
     check=_patch_check, unidentifiable=_patch_unidentifiable, candidate=_patch_candidate,
     to_effects=_patch_effects, scan_columns=_patch_columns, finish=_patch_finish,
-    marks=_patch_marks, respread=_patch_respread))
+    marks=_patch_marks, respread=_patch_respread, remark=_patch_remark))
 
 
 # ---------------------------------------------------------------------------------------

@@ -145,6 +145,10 @@ class EffectDef:
         refit, the fitted effect's size spread differently over its location (a patch's
         deficit over a wider stretch); the refit keeps whichever ends lowest.  Default:
         none.
+    remark : callable
+        ``remark(params, shots) -> str``: what a reader must know to read the reported
+        parameters right (a patch that reaches the release or the stop is a step, which
+        its complement describes as well); "" for nothing (the default).
     """
 
     name: str
@@ -162,6 +166,7 @@ class EffectDef:
     location_bounds: Callable = lambda loc, shots: {}
     marks: Callable = lambda params, j, t, pred: []
     respread: Callable = lambda values, shots: []
+    remark: Callable = lambda params, shots: ""
 
     @property
     def param_names(self) -> tuple:

@@ -31,7 +31,14 @@ def _tracked(tmp_path, seed, effects):
 @pytest.mark.slow
 def test_video_with_hidden_patch_is_found(tmp_path):
     """A patch 40 % stickier over 0.8 m, placed at random on the first metres of the
-    path, is named and placed from a rendered and tracked video."""
+    path, is named and placed from a rendered and tracked video.
+
+    Placed as the path sees it: a patch that reaches the rock's stop is a step in the
+    friction at its start, which a slipperier stretch from the release up to that
+    point (and a stickier baseline) describes as well - farm seeds 109592032 and
+    1675073432 found [release, 0.84 m] x 0.71 for [0.83, 1.63 m] x 1.4.  So the
+    friction's profile along the path is compared up to the baseline's alpha, away
+    from the true edges."""
     from curltrack.discover import discover
     from curltrack.physics import Effect
 
@@ -40,11 +47,20 @@ def test_video_with_hidden_patch_is_found(tmp_path):
     patch = {"y_start_m": y_a, "y_end_m": y_a + 0.8, "factor": 1.4}
     tracked = _tracked(tmp_path, seed, [Effect("friction_patch", patch)])
     rep = discover(tracked, seed=seed)
-    assert rep["verdict"] == "friction_patch", (seed, [(f["effect"], f["delta_bic"])
-                                                       for f in rep["findings"]])
+    assert rep["verdict"] == "friction_patch", (f"seed {seed}", [(f["effect"], f["delta_bic"])
+                                                                 for f in rep["findings"]])
     f = next(f for f in rep["findings"] if f["effect"] == "friction_patch")
-    mid = 0.5 * (f["params"]["y_start_m"] + f["params"]["y_end_m"])
-    assert abs(mid - 0.5 * (patch["y_start_m"] + patch["y_end_m"])) < 0.5, (seed, f["params"])
+
+    def log_factor(y, p):
+        return np.where((y >= p["y_start_m"]) & (y <= p["y_end_m"]), np.log(p["factor"]), 0.0)
+
+    y = np.linspace(0.0, float(np.nanmax(tracked.data.y)), 400)
+    edges = np.array([patch["y_start_m"], patch["y_end_m"]])
+    away = np.abs(y[:, None] - edges[None]).min(axis=1) > 0.3
+    r = (log_factor(y, patch) - log_factor(y, f["params"]))[away]
+    # (one constant, to within half the patch's own contrast: a patch found elsewhere,
+    # or too weak, spreads it by the whole contrast)
+    assert np.ptp(r) < 0.5 * np.log(patch["factor"]), (f"seed {seed}", f["params"])
 
 
 @pytest.mark.slow
@@ -54,5 +70,5 @@ def test_clean_tracked_video_gives_none(tmp_path):
 
     seed = int(np.random.SeedSequence().entropy % 2**32)
     rep = discover(_tracked(tmp_path, seed, []), seed=seed)
-    assert rep["verdict"] == "none", (seed, [(f["effect"], f["delta_bic"])
+    assert rep["verdict"] == "none", (f"seed {seed}", [(f["effect"], f["delta_bic"])
                                              for f in rep["findings"]])

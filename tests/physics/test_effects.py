@@ -189,3 +189,27 @@ def test_effect_defaults_and_duplicates():
         gather([Effect("late_curl", {"k": 1}), Effect("late_curl", {"k": 2})])
     terms = gather([("ice_slope", {"slope_x_mm_per_m": 1}), ("ice_slope", {"slope_x_mm_per_m": 2})])
     assert terms.slope_accel[0] == pytest.approx(-G * 3e-3, rel=1e-5)
+
+
+def test_a_patch_that_reaches_an_end_of_the_path_is_read_as_a_step():
+    """A fitted patch that reaches the release or the rock's stop changes the friction
+    at one edge only: its remark says so, with the complement's factor; a patch inside
+    the path has none."""
+    from types import SimpleNamespace
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    remark = EFFECTS["friction_patch"].remark
+    y_max = rng.uniform(2.0, 30.0)
+    shots = [SimpleNamespace(translates=True, y_max_m=y_max),
+             SimpleNamespace(translates=False, y_max_m=0.0)]
+    edge, f = rng.uniform(0.2, 0.8) * y_max, rng.uniform(0.3, 3.0)
+    early = remark({"y_start_m": -rng.uniform(0, 1), "y_end_m": edge, "factor": f}, shots)
+    late = remark({"y_start_m": edge, "y_end_m": y_max + rng.uniform(0, 1), "factor": f},
+                  shots)
+    for text, side in ((early, "after"), (late, "before")):
+        assert f"step in the friction at y = {edge:.2f} m" in text, (seed, text)
+        assert f"factor {1 / f:.3g} on the path {side} it" in text, (seed, text)
+    inside = {"y_start_m": 0.1 * y_max, "y_end_m": 0.9 * y_max, "factor": f}
+    assert remark(inside, shots) == "", seed
+    assert remark(inside, shots[1:]) == "", seed   # (no sliding rock: nothing to read)
