@@ -46,6 +46,7 @@ import itertools
 
 import numpy as np
 
+from ..rig import BAND_RADIUS_M
 from .registry import (EFFECTS, REQUIRED, Candidate, Effect, EffectDef, Param,
                        as_effects, at_a_time_in_one_shot, curling, effect_parameters,
                        gather, register, spin_directions, theta_measured, time_grid,
@@ -247,9 +248,12 @@ def _patch_remark(params, shots) -> str:
         return ""
     y_max = max(s.y_max_m for s in moving)
     a, b, f = params["y_start_m"], params["y_end_m"], params["factor"]
-    if a <= 0.0 < b < y_max:
+    # (an edge within the running band's width of an end is at it: the band straddles
+    # it - a tracked video's fit began one at 0.07 m)
+    near = 2.0 * BAND_RADIUS_M
+    if a <= near < b < y_max - near:
         edge, side = b, "after"
-    elif 0.0 < a < y_max <= b:
+    elif near < a < y_max - near <= b:
         edge, side = a, "before"
     else:
         return ""

@@ -54,13 +54,19 @@ def test_video_with_hidden_patch_is_found(tmp_path):
     def log_factor(y, p):
         return np.where((y >= p["y_start_m"]) & (y <= p["y_end_m"]), np.log(p["factor"]), 0.0)
 
-    y = np.linspace(0.0, float(np.nanmax(tracked.data.y)), 400)
-    edges = np.array([patch["y_start_m"], patch["y_end_m"]])
+    # (at the rows, so weighed by the time the rock spends there, as the fit is; away
+    # from every edge, true or found, by 0.3 m: each placed to ~0.1-0.2 m, and seed
+    # 2940041658's started at 0.07 m, crossed in 0.06 s)
+    y = tracked.data.y.to_numpy(float)
+    y = y[np.isfinite(y)]
+    edges = np.array([patch["y_start_m"], patch["y_end_m"], f["params"]["y_start_m"],
+                      f["params"]["y_end_m"]])
     away = np.abs(y[:, None] - edges[None]).min(axis=1) > 0.3
     r = (log_factor(y, patch) - log_factor(y, f["params"]))[away]
     # (one constant, to within half the patch's own contrast: a patch found elsewhere,
-    # or too weak, spreads it by the whole contrast)
-    assert np.ptp(r) < 0.5 * np.log(patch["factor"]), (f"seed {seed}", f["params"])
+    # or too weak, is off by the whole contrast somewhere)
+    assert away.sum() >= 10 and np.ptp(r) < 0.5 * np.log(patch["factor"]), \
+        (f"seed {seed}", f["params"], int(away.sum()))
 
 
 @pytest.mark.slow

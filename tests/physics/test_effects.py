@@ -204,8 +204,9 @@ def test_a_patch_that_reaches_an_end_of_the_path_is_read_as_a_step():
     shots = [SimpleNamespace(translates=True, y_max_m=y_max),
              SimpleNamespace(translates=False, y_max_m=0.0)]
     edge, f = rng.uniform(0.2, 0.8) * y_max, rng.uniform(0.3, 3.0)
-    early = remark({"y_start_m": -rng.uniform(0, 1), "y_end_m": edge, "factor": f}, shots)
-    late = remark({"y_start_m": edge, "y_end_m": y_max + rng.uniform(0, 1), "factor": f},
+    # (an edge within the running band's width of the release is at it)
+    early = remark({"y_start_m": rng.uniform(-1, 0.1), "y_end_m": edge, "factor": f}, shots)
+    late = remark({"y_start_m": edge, "y_end_m": y_max + rng.uniform(-0.1, 1), "factor": f},
                   shots)
     for text, side in ((early, "after"), (late, "before")):
         assert f"step in the friction at y = {edge:.2f} m" in text, (seed, text)
