@@ -350,6 +350,14 @@ def field_offset_along(t, q, field, ok, window_s: float = FIELD_PULL_WINDOW_S,
 IMAGE_SPEED_WINDOW_S = 0.2
 
 
+def _field_pairs(records, field, usable) -> np.ndarray:
+    """Rows ``a`` whose next row is the same frame's other field (field 0 then field 1),
+    both ``usable`` ((N,) bool)."""
+    frame = np.array([r.frame for r in records])
+    return np.flatnonzero((field[:-1] == 0) & (field[1:] == 1) & (frame[:-1] == frame[1:])
+                          & usable[:-1] & usable[1:])
+
+
 def image_velocity(records, t, field, ok) -> np.ndarray:
     """The rock's velocity across the image at every measured row (n, 2), in ice
     metres per second along the lattice's x, y; NaN where it cannot be read.
@@ -396,11 +404,7 @@ def image_velocity(records, t, field, ok) -> np.ndarray:
             v = np.gradient(px[rows], t[rows], axis=0, edge_order=2)
             out[rows] = np.einsum("nij,nj->ni", jac[rows], v)
             slide[rows] = np.gradient(ctr[rows], t[rows], axis=0, edge_order=2)
-    # (the frame's two fields: field 0, then field 1, consecutive rows)
-    frame = np.array([r.frame for r in records])
-    pair = np.flatnonzero((fld[:-1] == 0) & (fld[1:] == 1) & (frame[:-1] == frame[1:])
-                          & np.isfinite(out[:-1]).all(axis=1)
-                          & np.isfinite(out[1:]).all(axis=1))
+    pair = _field_pairs(records, fld, np.isfinite(out).all(axis=1))
     for a in pair:
         b = a + 1
         dt = t[b] - t[a]
@@ -450,9 +454,7 @@ def image_turn(records, t, field, ok, theta, calib) -> np.ndarray:
                                                 np.degrees(yaw[rows][1:])))
             cam = np.r_[0.0, np.cumsum(turns)]
             out[rows] = spin[rows] - np.gradient(cam, t[rows], edge_order=2)
-    frame = np.array([r.frame for r in records])
-    pair = np.flatnonzero((fld[:-1] == 0) & (fld[1:] == 1) & (frame[:-1] == frame[1:])
-                          & np.isfinite(out[:-1]) & np.isfinite(out[1:]))
+    pair = _field_pairs(records, fld, np.isfinite(out))
     dt = t[pair + 1] - t[pair]
     cam = np.radians(lattice_turn_deg(np.degrees(yaw[pair]), np.degrees(yaw[pair + 1])))
     rate = 0.5 * (spin[pair] + spin[pair + 1]) - cam / np.where(dt > 0, dt, np.nan)
