@@ -160,12 +160,6 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
                 shots[j].omega0_curl_end = None
             break
     curl_warnings = curl_end_warnings(base, fit0)
-    # (an instrument's levels first: its jumps are no glitches - a clean step-noise
-    # shot had 250 of its 598 rows left out as one "glitch" of 8 s)
-    level_warnings = instrument_levels(base, fit0)
-    if level_warnings:
-        base = JointModel(shots, baseline, rig=rig)
-        fit0 = base.fit(max_nfev=80, name=names)
     outlier_warnings = drop_isolated_outliers(base, fit0)
     if outlier_warnings:
         base = JointModel(shots, baseline, rig=rig)
@@ -258,8 +252,7 @@ def discover(series, baseline: str = "paper", rig=None, seed: int = 0,
     report = build_report(shots, base, fit0, before, h0, h0_loso, scores, cand_bounds,
                           not_tested=untested(shots, baseline),
                           warnings=[*unit_warnings, *thinned, *curl_warnings,
-                                    *outlier_warnings, *level_warnings, *spread_warnings,
-                                    *noise_warnings],
+                                    *outlier_warnings, *spread_warnings, *noise_warnings],
                           smooth=smooth)
     # the baseline's low-frequency excess may be the named effect itself (the demo's
     # tracked shot with a hidden friction patch: y's baseline residuals held ~7e4x white
@@ -434,13 +427,11 @@ def drop_isolated_outliers(model: JointModel, fit) -> list[str]:
         rows = np.flatnonzero(s.use[c])
         z = fit.r_raw[sl] / s.sigma[c][rows]
         drop[(j, c)] = set(rows[isolated_outliers(z)].tolist())
-        # (where the instrument errs by levels, a jump and one back are two of them)
-        seen[(j, c)] = (rows, z, sl, [] if len(s.levels.get(c, ())) else isolated_steps(z))
+        seen[(j, c)] = (rows, z, sl, isolated_steps(z))
     for (j, c), (rows, z, sl, boxes) in seen.items():
         s = model.shots[j]
         other = {"x": "y", "y": "x"}.get(c)
-        if not boxes and (j, other) in seen and seen[(j, other)][3] \
-                and not len(s.levels.get(c, ())):
+        if not boxes and (j, other) in seen and seen[(j, other)][3]:
             # x and y are one position fix: the other's glitch explains its jumps here
             # too, which may stand under the threshold on one side (CI seed 1014755135)
             o_rows = seen[(j, other)][0]
@@ -471,66 +462,6 @@ def drop_isolated_outliers(model: JointModel, fit) -> list[str]:
     return [f"{model.shots[j].name}: rows left out of every fit as isolated outliers (> "
             f"{OUTLIER_K:g} sigma from their neighbours) or glitches: {', '.join(parts)}"
             for j, parts in counts.items()] + notes
-
-
-def instrument_levels(model: JointModel, fit) -> list[str]:
-    """Give each coordinate whose baseline residuals jump from level to level the
-    instrument's levels (in place on ``model.shots``, which :func:`discover` made for
-    itself: :func:`~.shots.set_levels`); a warning per such coordinate.
-
-    An instrument whose fixes hold for seconds and jump by centimetres (the ``steps``
-    noise class: 5 cm levels, 1 cm scatter about them) was judged with its levels as
-    noise that persists: ~10 independent levels in a 20 s shot, and no effect of
-    physical size was named (a 0.2 m/s pick in 1 of 10).  A rock's position cannot jump,
-    so every jump (:func:`~curltrack.series.noise.level_breaks`) is the instrument's, and
-    each level's offset a nuisance every fit projects out
-    (:class:`~.model.JointModel`): the effects are then judged against the scatter
-    about the levels.
-    """
-    from ..series.noise import isolated_steps, level_breaks
-    from .shots import set_levels
-
-    # (a fix lost and found again - a jump and one back, isolated - is a glitch, which
-    # :func:`drop_isolated_outliers` leaves out and names; its edges in the same fix's
-    # other coordinate are its too)
-    glitches, rows_of = {}, {}
-    for j, c, sl in model.segments:
-        s = model.shots[j]
-        rows_of[(j, c)] = np.flatnonzero(s.use[c])
-        glitches[(j, c)] = isolated_steps(fit.r_raw[sl] / s.sigma[c][rows_of[(j, c)]])
-
-    def breaks_of(j, c, sl):
-        if glitches[(j, c)]:
-            return np.empty(0, int)
-        other = {"x": "y", "y": "x"}.get(c)
-        edges = [rows_of[(j, other)][i] for a, b in glitches.get((j, other), ())
-                 for i in (a, b) if i < rows_of[(j, other)].size]
-        known = {int(np.searchsorted(rows_of[(j, c)], e)) for e in edges}
-        return level_breaks(fit.r_raw[sl], known=known)
-
-    found = {(j, c): breaks_of(j, c, sl) for j, c, sl in model.segments}
-    # x and y are one position fix: where one errs by levels, so does the other
-    fix = {j for (j, c), b in found.items() if c in ("x", "y") and b.size}
-    notes = []
-    for j, c, sl in model.segments:
-        s = model.shots[j]
-        rows = np.flatnonzero(s.use[c])
-        r = fit.r_raw[sl]
-        breaks = found[(j, c)]
-        if breaks.size == 0 and c in ("x", "y") and j in fix:
-            breaks = level_breaks(r, sure=True)
-        if breaks.size == 0:
-            continue
-        jumps = [float(np.median(r[b:b + 3]) - np.median(r[max(b - 3, 0):b])) for b in breaks]
-        set_levels(s, c, rows[breaks])
-        unit, what = ("rad", "angle") if c == "theta" else ("m", "position")
-        notes.append(f"{s.name}: {c}: the instrument's errors move by levels ({breaks.size} "
-                     f"jumps, median size {np.median(np.abs(jumps)):.3g} {unit}, from t = "
-                     f"{s.t[rows[breaks[0]]]:.2f} s): a rock's {what} cannot jump, so each "
-                     "level's offset is fitted as the instrument's, and the effects are "
-                     f"judged against the scatter about the levels ({s.noise[c].sigma:.3g} "
-                     f"{unit})")
-    return notes
 
 
 #: Low-frequency noise (the residuals' ``inflation``, :func:`~curltrack.series.noise.

@@ -16,11 +16,7 @@ Parameters (SI units):
 
 The forward model is :func:`curltrack.physics.simulate`; nothing here is physics.
 Residuals are divided by each row's noise and AR(1)-whitened per (shot, coordinate), so
-the fit is weighted least squares under the noise model estimated from the data.  Where
-an instrument errs by levels (``ShotData.levels``: a LiDAR's fixes that hold for seconds
-and jump by centimetres), each level's offset is a nuisance parameter, projected out of
-every whitened residual and Jacobian (variable projection): the fits see the rows'
-scatter about their levels, never the jumps.
+the fit is weighted least squares under the noise model estimated from the data.
 """
 
 from __future__ import annotations
@@ -88,9 +84,6 @@ class FitOut:
     predictions: list
     success: bool
     message: str
-    #: nuisance parameters projected out (an instrument's error levels): the same for
-    #: every model of the same shots, so not in ``bic``; they take degrees of freedom
-    n_nuisance: int = 0
 
     @property
     def k(self) -> int:
@@ -112,7 +105,7 @@ class FitOut:
 
     @property
     def redchi(self) -> float:
-        return self.chi2 / max(self.n - self.k - self.n_nuisance, 1)
+        return self.chi2 / max(self.n - self.k, 1)
 
     def err(self, name: str) -> float:
         i = self.free.index(name) if name in self.free else None
@@ -222,29 +215,6 @@ class JointModel:
                     self._frame_steps.append(np.diff(s.frame[s.use[c]]))
                     i0 += m
         self.n = i0
-        #: per segment, the instrument's error levels as (one-hot rows x levels, Q, R of
-        #: their whitened columns), or None
-        self._levels = [self._level_basis(k) for k in range(len(self._segments))]
-        self.n_levels = sum(lv[0].shape[1] for lv in self._levels if lv is not None)
-
-    def _level_basis(self, i: int):
-        j, c, _ = self._segments[i]
-        s = self.shots[j]
-        first = np.asarray(s.levels.get(c, ()), int)
-        if first.size == 0:
-            return None
-        level = np.searchsorted(first, np.flatnonzero(s.use[c]), side="right")
-        _, level = np.unique(level, return_inverse=True)
-        if level.max() == 0:
-            return None
-        # the level with the most rows is the reference: its offset is the shot's own
-        # (x0, y0, theta0), which the sum of all the levels' would otherwise stand in for
-        ref = int(np.argmax(np.bincount(level)))
-        other = level != ref
-        onehot = np.zeros((level.size, int(level.max())))
-        onehot[np.flatnonzero(other), level[other] - (level[other] > ref)] = 1.0
-        q, rr = np.linalg.qr(self._whiten_plain(i, onehot))
-        return onehot, q, rr
 
     # --- evaluation ---------------------------------------------------------------
     @property
@@ -333,28 +303,7 @@ class JointModel:
         return out
 
     def whiten_segment(self, i: int, v):
-        """:meth:`whiten` of segment ``i``'s rows alone (v: (m,) or (m, k)), the
-        instrument's levels projected out."""
-        w = self._whiten_plain(i, v)
-        lv = self._levels[i]
-        if lv is None:
-            return w
-        q = lv[1]
-        return w - q @ (q.T @ w)
-
-    def delevel(self, v):
-        """``v`` (physical units, (n,) or (n, k)) less its best fit by the instrument's
-        levels, each segment weighted as :meth:`whiten` weighs it: the residual the
-        fits see, in m and rad."""
-        v = np.array(v, dtype=float)
-        for i, (_, _, sl) in enumerate(self._segments):
-            lv = self._levels[i]
-            if lv is not None:
-                onehot, q, rr = lv
-                v[sl] -= onehot @ np.linalg.solve(rr, q.T @ self._whiten_plain(i, v[sl]))
-        return v
-
-    def _whiten_plain(self, i: int, v):
+        """:meth:`whiten` of segment ``i``'s rows alone (v: (m,) or (m, k))."""
         j, c, _ = self._segments[i]
         s = self.shots[j]
         sig = s.sigma[c][s.use[c]]
@@ -456,15 +405,15 @@ class JointModel:
         self.values = self.with_vector(res.x)  # (SciPy's solution as it returned it)
         self.nfev = (res.least_squares_nfev, res.njev)
         vec, preds = self._model_vector(self.values)
-        r = self.whiten(data - vec)
+        r_raw = data - vec
+        r = self.whiten(r_raw)
         if not np.isfinite(r).all():
             raise FitError("model fit produced non-finite residuals", path=name)
         J_raw = self.jacobian_raw(self.values, vec, preds)
         J = self.whiten(J_raw)
         chi2 = float(r @ r)
-        dof = max(self.n - len(self.free) - self.n_levels, 1)
+        dof = max(self.n - len(self.free), 1)
         cov = covariance(J)
         cov = cov * max(1.0, chi2 / dof)
-        return FitOut(dict(self.values), list(self.free), cov, chi2, self.n, r, J,
-                      self.delevel(data - vec), self.delevel(J_raw), preds,
-                      bool(res.success), str(res.message), n_nuisance=self.n_levels)
+        return FitOut(dict(self.values), list(self.free), cov, chi2, self.n, r, J, r_raw,
+                      J_raw, preds, bool(res.success), str(res.message))

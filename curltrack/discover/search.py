@@ -365,12 +365,12 @@ def null_noise(base: JointModel, r0, r_alt) -> tuple[list, np.ndarray]:
       step noise, and its threshold from what was left (16 against the baseline's 315)
       named it - and on noise it barely changes, ``r0`` is the noise.
     """
-    from ..series.noise import CORRELATED_TAU
+    from ..series.noise import CORRELATED_TAU, at_rho_bound
 
     own = residual_noise(base, r0, pool=False)
     left = residual_noise(base, r_alt, pool=False)
     bound = {j for j, c, _ in base.segments if c in POSITION
-             and base.shots[j].errors_persist(c)}
+             and at_rho_bound(base.shots[j].noise[c])}
     took = [b[0] <= MISFIT_EXPLAINED * a[0] for a, b in zip(own, left)]
     # x and y are one position fix: where what the candidate left of one still persists
     # beyond a bootstrap block, the instrument's errors persist, and the other's noise
@@ -860,9 +860,9 @@ def _persisting(model: JointModel, pooled) -> tuple[set, set, set]:
     few windows say: the noise persists (for x and y together, one position fix).  So
     does every coordinate of a shot whose instrument says so
     (:attr:`~curltrack.discover.shots.ShotData.noise_persists`)."""
-    from ..series.noise import CORRELATED_TAU
+    from ..series.noise import CORRELATED_TAU, at_rho_bound
 
-    bound = {(j, c) for j, c, _ in model.segments if model.shots[j].errors_persist(c)}
+    bound = {(j, c) for j, c, _ in model.segments if at_rho_bound(model.shots[j].noise[c])}
     flagged = bound | {(j, c) for (j, c, _), (_, tau) in zip(model.segments, pooled)
                        if tau > CORRELATED_TAU}
     persists, session = _instrument_wide(model, flagged)

@@ -83,26 +83,12 @@ class ShotData:
     #: what was taken off x, y (m) and theta (rad) of a series measured from another
     #: origin (:func:`_recentre`); the report gives the offsets in the series' frame
     origin: tuple = (0.0, 0.0, 0.0)
-    #: per coordinate, the rows (indices into ``t``) where the instrument's error moves
-    #: to a new level (:func:`curltrack.series.noise.level_breaks`; set by
-    #: :func:`set_levels`): each level's offset but one is a nuisance of every fit
-    levels: dict = field(default_factory=dict)
 
     @property
     def curls(self) -> bool:
         """Whether the transverse acceleration acts (sliding with a spin, measured or,
         for a position-only shot, assumed: its side comes from the curl)."""
         return self.translates and (self.spins or not self.theta_measured)
-
-    def errors_persist(self, c: str) -> bool:
-        """Whether coordinate ``c``'s errors persist beyond what its AR(1) model
-        whitens: its rho at the bound (:func:`~curltrack.series.noise.at_rho_bound`), or
-        an instrument that errs by levels (:attr:`levels`), whose jumps too small to be
-        found hold as long as the others (clean step-noise shots with levels but judged
-        as white noise about them: 3 of 15 ``unexplained``, none as persisting)."""
-        from ..series.noise import at_rho_bound
-
-        return at_rho_bound(self.noise[c]) or len(self.levels.get(c, ())) > 0
 
     def coords(self):
         """Coordinates that enter the fits."""
@@ -207,30 +193,6 @@ def shot_from_series(series: Series, rig=None) -> ShotData:
                 warnings.append(f"{name}: the curl ({a:.2g} m/s^2) does not tell the "
                                 "spin's side within 2 sigma; taken from its sign")
     return shot
-
-
-def set_levels(shot: ShotData, c: str, first_rows) -> None:
-    """Give coordinate ``c`` of ``shot`` (in place) the instrument's error levels that
-    begin at ``first_rows`` (indices into ``shot.t``), and its noise measured within
-    them: the second differences that span a jump are left out, so that the rows'
-    sigma is their scatter about their level (~1 cm under 5 cm levels), not the jumps'.
-    """
-    first = np.unique(np.asarray(first_rows, int))
-    rows = np.isfinite(shot.obs[c])
-    frame = shot.frame[rows]
-    # (a level's rows numbered apart from the next's: no difference spans a jump)
-    level = np.searchsorted(first, np.flatnonzero(rows), side="right")
-    apart = frame + level * 10 * (int(frame[-1] - frame[0]) + 10)
-    stated = shot.stated_sigma.get(c)
-    t_stop = shot.t_stop_rotation if c == "theta" else shot.t_stop_translation
-    noise, s_rows = row_sigma(apart, shot.obs[c][rows], t=shot.t[rows], t_stop=t_stop,
-                              name=shot.name, field=c,
-                              weights=stated[rows] if stated is not None else None,
-                              floor=1e-6 if c == "theta" else 1e-5)
-    shot.noise[c] = noise
-    shot.sigma[c] = np.full(shot.t.size, noise.sigma)
-    shot.sigma[c][rows] = s_rows
-    shot.levels[c] = first
 
 
 def stated_sigma_rows(shot, c: str):

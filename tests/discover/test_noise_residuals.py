@@ -135,12 +135,11 @@ def _pure_noise_model(kind, rate, rng, sigma=0.05):
     (AR(1)-whitened by the noise model, as discover's are)."""
     from types import SimpleNamespace
 
-    from curltrack.discover.shots import ShotData
     from curltrack.instrument import draw_noise
     from curltrack.series.noise import whiten
 
     t = np.arange(0.0, rng.uniform(12, 25), 1.0 / rate)
-    shot = ShotData("<noise>", t, np.arange(t.size), {}, {}, {}, {})
+    shot = SimpleNamespace(t=t, use={}, noise={}, noise_persists=False)
     r, segments = [], []
     for c in ("x", "y"):
         e = draw_noise(kind, t, sigma, rng)
