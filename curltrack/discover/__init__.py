@@ -427,7 +427,7 @@ def drop_isolated_outliers(model: JointModel, fit) -> list[str]:
         rows = np.flatnonzero(s.use[c])
         z = fit.r_raw[sl] / s.sigma[c][rows]
         drop[(j, c)] = set(rows[isolated_outliers(z)].tolist())
-        seen[(j, c)] = (rows, z, sl, isolated_steps(z))
+        seen[(j, c)] = (rows, z, sl, isolated_steps(z, t=s.t[rows]))
     for (j, c), (rows, z, sl, boxes) in seen.items():
         s = model.shots[j]
         other = {"x": "y", "y": "x"}.get(c)
@@ -438,7 +438,7 @@ def drop_isolated_outliers(model: JointModel, fit) -> list[str]:
             edges = [o_rows[i] for a, b in seen[(j, other)][3] for i in (a, b)
                      if i < len(o_rows)]
             known = {int(np.searchsorted(rows, e)) - 1 for e in edges} - {-1}
-            boxes = isolated_steps(z, known=known)
+            boxes = isolated_steps(z, known=known, t=s.t[rows])
         for a, b in boxes:
             box = rows[a:b]
             (glitched.setdefault(j, set()) if c in ("x", "y") else drop[(j, c)]).update(

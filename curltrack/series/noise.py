@@ -445,7 +445,13 @@ MAX_GLITCH_STEPS = 4
 STEP_RETURN = 0.3
 
 
-def isolated_steps(r, k: float = OUTLIER_K, known=()) -> list[tuple[int, int]]:
+#: a glitch holds at most this long (s): a fix lost for 0.5-3 s; a "box" over most of a
+#: shot is the instrument's level, not a glitch (a clean step-noise shot had 172 of its
+#: 193 rows, 17 s, left out as one)
+MAX_GLITCH_HOLD_S = 5.0
+
+
+def isolated_steps(r, k: float = OUTLIER_K, known=(), t=None) -> list[tuple[int, int]]:
     """Stretches ``[i, j)`` of ``r`` that a position fix's glitch lifted and let go: a
     jump of many sigma, held, and a jump back.
 
@@ -469,6 +475,8 @@ def isolated_steps(r, k: float = OUTLIER_K, known=()) -> list[tuple[int, int]]:
     known : iterable of int
         Jumps (index ``i``: between rows ``i`` and ``i + 1``) already explained as a
         glitch of the same fix's other coordinate: not counted here.
+    t : array, optional
+        The rows' times (s): a glitch holds at most :data:`MAX_GLITCH_HOLD_S`.
 
     Returns
     -------
@@ -500,6 +508,8 @@ def isolated_steps(r, k: float = OUTLIER_K, known=()) -> list[tuple[int, int]]:
         if a in used or b in used:
             continue
         h1, h2 = d[a], d[b]
+        if t is not None and t[b + 1] - t[a + 1] > MAX_GLITCH_HOLD_S:
+            continue
         if h1 * h2 < 0 and abs(h1 + h2) <= STEP_RETURN * max(abs(h1), abs(h2)):
             out.append((int(a) + 1, int(b) + 1))
             used |= {a, b}

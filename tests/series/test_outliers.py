@@ -93,3 +93,27 @@ def test_a_jump_the_other_coordinate_explains_does_not_block_a_glitch():
     assert isolated_steps(r) == [], what
     assert isolated_steps(r, known={b1 - 1}) == [(a2, b2)], (what, isolated_steps(
         r, known={b1 - 1}))
+
+
+def test_a_glitch_is_short_a_long_box_is_a_level():
+    """A glitch is a fix lost for a while (0.5-3 s) and found again: a jump and one
+    back that hold longer than MAX_GLITCH_HOLD_S are the instrument's levels, not a
+    glitch (a clean step-noise shot had 17 s of its rows, 172 of 193, left out as one
+    "glitch").  The same box held within the limit is found."""
+    from curltrack.series.noise import MAX_GLITCH_HOLD_S, OUTLIER_K, isolated_steps
+
+    seed = int(np.random.SeedSequence().entropy % (1 << 32))
+    rng = np.random.default_rng(seed)
+    rate = float(rng.choice([10.0, 25.0, 30.0]))
+    n = int(rng.uniform(20.0, 30.0) * rate)
+    t = np.arange(n) / rate
+    size = rng.choice([-1.0, 1.0]) * rng.uniform(2.0, 4.0) * OUTLIER_K * np.sqrt(2)
+    for hold, found in ((rng.uniform(0.5, MAX_GLITCH_HOLD_S - 1.0), True),
+                        (rng.uniform(MAX_GLITCH_HOLD_S + 1.0, 0.6 * t[-1]), False)):
+        r = 0.1 * rng.standard_normal(n)
+        a = int(rng.integers(int(0.5 * rate), n - int((hold + 1.0) * rate)))
+        b = a + int(round(hold * rate))
+        r[a:b] += size
+        what = f"seed {seed}: {rate:g} Hz, box rows {a}-{b} ({hold:.1f} s)"
+        assert isolated_steps(r, t=t) == ([(a, b)] if found else []), (what, isolated_steps(r, t=t))
+        assert isolated_steps(r) == [(a, b)], what   # (no times: no limit)
