@@ -33,7 +33,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _rigid(a: np.ndarray, b: np.ndarray):
-    """Rotation R and offset t that best map points ``a`` (n, 2) onto ``b``."""
+    """Rotation R and offset t that best map points ``a`` (n, 2) onto ``b``.
+    (Not :func:`curltrack.track.parallax.similarity_fit`: its scale would absorb the
+    travel-long error this script measures.)"""
     am, bm = a.mean(0), b.mean(0)
     u, _, vt = np.linalg.svd((a - am).T @ (b - bm))
     r = (u @ vt).T
@@ -130,9 +132,9 @@ def error_chain(video: Path, rig, truth: pd.DataFrame) -> tuple[pd.DataFrame, di
                              travel))
     data = shot.data.merge(truth[["frame", "x", "y"]], on="frame", suffixes=("", "_t"))
     ok = data["ok"].to_numpy() == 1
-    err = (data[["x", "y"]].to_numpy() - data[["x_t", "y_t"]].to_numpy())[ok]
-    row_travel = np.hypot(*(data[["x_t", "y_t"]].to_numpy()[ok]
-                            - data[["x_t", "y_t"]].to_numpy()[0]).T)
+    true_xy = data[["x_t", "y_t"]].to_numpy()
+    err = (data[["x", "y"]].to_numpy() - true_xy)[ok]
+    row_travel = np.hypot(*(true_xy[ok] - true_xy[0]).T)
     stages.append(_stage("SHOT.csv rows (shot frame, ok = 1)", err, row_travel))
     z = np.hypot(*err.T) / data["sigma_xy"].to_numpy()[ok]
     notes.update(rows_error_over_sigma_median=float(np.median(z)),
