@@ -152,6 +152,91 @@ class ThreadPoints:
         return None if self._colour_of is None else self._colour_of()
 
 
+def _positions_along(lo, hi, step, gap):
+    """Profile positions (cells of the crossing family) along the threads, from ``lo``
+    to ``hi``: about one per ``step`` cells, each in the clear part of its cell (more
+    than ``gap`` cells from the crossing threads), locked to the lattice.
+
+    Positions stepped from an origin drift against the crossings when the step is not a
+    whole number of cells (18 px steps on 17.6 px cells: half the thread's length fell
+    on crossings and was never sampled), and counted from the frame's edge they can all
+    fall on crossings (the coarse snap's 40 px on 40 px cells).
+    """
+    clear = 1.0 - 2.0 * gap
+    cells = np.arange(np.floor(lo), hi)
+    if clear <= 0:
+        return cells[:0]
+    if step >= 1.0:  # one mid-cell profile every so many cells
+        every = int(round(step))
+        return cells[np.mod(cells, every) == 0] + 0.5
+    n = max(1, int(round(1.0 / step)))  # this many per cell, spread over its clear part
+    return (cells[:, None] + gap + (np.arange(n) + 0.5) * clear / n).ravel()
+
+
+#: Fewest stretches (or, on a thread averaged whole, profiles) kept along each thread
+#: when the frame holds more profiles than wanted: both ends and the middle, so that
+#: every thread's direction is measured, not only its offset.
+MIN_SPREAD = 3
+
+
+def _line_starts(fam, line):
+    """True where a new thread starts in profiles ordered by family and thread."""
+    return np.concatenate(([True], (fam[1:] != fam[:-1]) | (line[1:] != line[:-1])))
+
+
+def _spread_evenly(fam, line, along, seg_cells, whole, usable, max_profiles):
+    """Which profiles to sample when the frame holds more than ``max_profiles``.
+
+    On every thread, an evenly spread selection of its usable stretches of
+    ``seg_cells`` (of its single profiles when ``whole``) that always includes both
+    ends of what it shows and at least :data:`MIN_SPREAD` of them.  A selection by
+    stretch index alone, the same for every thread, can alias with the gaps left at
+    the crossing threads and keep one band across a family: then the threads'
+    direction is not measured, and the lattice's shear drifts from frame to frame
+    (a 640x360 view of 22 px cells read the travel 11 % long).
+
+    Profiles come ordered by family, thread and position along it; returns a mask
+    over all of them (False where not ``usable``).
+    """
+    keep = usable.copy()
+    n_usable = int(np.count_nonzero(usable))
+    if not max_profiles or n_usable <= max_profiles:
+        return keep
+    idx = np.flatnonzero(usable)
+    f, ln, al = fam[idx], line[idx], along[idx]
+    unit = np.where(whole[f], np.arange(len(idx), dtype=float),
+                    np.floor(al / seg_cells[f]))
+    first_of_line = _line_starts(f, ln)
+    new_unit = first_of_line | np.concatenate(([True], unit[1:] != unit[:-1]))
+    unit_id = np.cumsum(new_unit) - 1
+    line_of_unit = (np.cumsum(first_of_line) - 1)[new_unit]
+    n_units = np.bincount(line_of_unit)[line_of_unit]
+    rank = np.arange(len(line_of_unit)) - np.searchsorted(line_of_unit, line_of_unit)
+    m = np.minimum(n_units, np.maximum(MIN_SPREAD,
+                                       np.rint(max_profiles / n_usable * n_units)))
+    # m points from both ends inclusive: rank r is one of them when rounding it to the
+    # nearest of the m and back gives r (steps over 1, so each r maps to one point)
+    step = (n_units - 1) / np.maximum(m - 1, 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        chosen = np.rint(np.rint(rank / step) * step) == rank
+    chosen |= n_units == 1
+    keep[idx] = chosen[unit_id]
+    return keep
+
+
+def _segment_of(fam, line, along, seg_cells, whole):
+    """Segment index of each profile along its thread: stretches of ``seg_cells``; on a
+    thread averaged whole (a family blurred across), its two halves (by profile count),
+    so that such a thread still gives two points and its direction is measured."""
+    seg = np.floor(along / seg_cells[fam])
+    if not whole.any():
+        return seg
+    first = np.flatnonzero(_line_starts(fam, line))
+    counts = np.diff(np.append(first, len(fam)))
+    rank = np.arange(len(fam)) - np.repeat(first, counts)
+    return np.where(whole[fam], (2 * rank >= np.repeat(counts, counts)).astype(float), seg)
+
+
 def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0,
                    mask=None, margin_px: float = 3.0,
                    gap_px=(4.0, 4.0), blur_px=(0.0, 0.0), seg_px: float = 40.0,
@@ -220,30 +305,14 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     # Profiles: on every thread line in view, every step_px along it (clear of the
     # crossing threads), ordered by family, thread, position along the thread.
     whole = np.asarray(blur_px) >= 6.0
-    seg_cells = np.where(whole, 1e6, seg_px) / p_cell[::-1]  # (along each family)
+    seg_cells = seg_px / p_cell[::-1]  # (along each family)
     step_cells = step_px / p_cell[::-1]  # profile spacing along each family's threads
-    keep_frac = 1.0
-    if max_profiles:
-        # profiles in view ~ frame area (cells^2) x profiles per cell^2 of each family
-        x, y = ab_edge[:, 0], ab_edge[:, 1]
-        area = 0.5 * abs(float(x[:-1] @ y[1:] - y[:-1] @ x[1:]) + x[-1] * y[0] - y[-1] * x[0])
-        keep_frac = min(1.0, max_profiles / max(area * np.sum(1.0 / step_cells), 1.0))
     pts, fams = [], []
     for fam in (0, 1):
         other = 1 - fam
         lines = np.arange(np.ceil(lo[fam]), np.floor(hi[fam]) + 1)
-        # Positions along the threads start mid-cell, locked to the lattice: at a step
-        # near a whole number of cells (the coarse snap's 40 px on 40 px cells) they all
-        # share one phase, which counted from the frame's edge can put every one of them
-        # on a crossing thread - a family with no profile at all, whatever the image.
-        along = np.arange(np.floor(lo[other]) + 0.5, hi[other], step_cells[fam])
-        keep = np.abs(along - np.round(along)) > gap_px[other] / p_cell[other]
-        if keep_frac < 1.0:
-            # whole segments (single profiles of threads averaged whole) whose index
-            # crosses a multiple of 1 / keep_frac: an evenly spread fraction
-            unit = np.floor(along / (step_cells[fam] if whole[fam] else seg_cells[fam]))
-            keep &= np.floor((unit + 1) * keep_frac) > np.floor(unit * keep_frac)
-        along = along[keep]
+        along = _positions_along(lo[other], hi[other], step_cells[fam],
+                                 gap_px[other] / p_cell[other])
         ab = np.empty((len(lines), len(along), 2))
         ab[:, :, fam] = lines[:, None]
         ab[:, :, other] = along
@@ -264,8 +333,10 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         rows_in = np.flatnonzero(inside)
         ci = np.rint(centre[rows_in]).astype(np.intp)  # (inside the image)
         inside[rows_in] = mask[ci[:, 1], ci[:, 0]] == 0
+    line, along = np.where(fam, ab[:, 1], ab[:, 0]), np.where(fam, ab[:, 0], ab[:, 1])
+    inside &= _spread_evenly(fam, line, along, seg_cells, whole, inside, max_profiles)
     ab, fam, centre = ab[inside], fam[inside], centre[inside]
-    dirv, half = dirv[inside], half[inside]
+    dirv, half, line, along = dirv[inside], half[inside], line[inside], along[inside]
     if len(ab) == 0:
         return None
     dt_px = max(1.0, max(half_px) / 10.0)  # <= 21 samples per profile
@@ -282,9 +353,8 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     # Consecutive profiles of a thread are averaged over segments (longer when blurred:
     # a smeared thread is faint in any one profile but straight over a long stretch).
     # The profiles come ordered by family, thread and position along it.
-    line, along = np.where(fam, ab[:, 1], ab[:, 0]), np.where(fam, ab[:, 0], ab[:, 1])
     # (|line| < 1000 cells and segment indices are small integers: one exact float key)
-    key = (fam * 4096.0 + line) * 2.0 ** 24 + np.floor(along / seg_cells[fam])
+    key = (fam * 4096.0 + line) * 2.0 ** 24 + _segment_of(fam, line, along, seg_cells, whole)
     starts = np.flatnonzero(np.concatenate(([True], key[1:] != key[:-1])))
     ends = np.append(starts[1:], len(key))
     counts = ends - starts

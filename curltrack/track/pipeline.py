@@ -652,6 +652,12 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             else:
                 rec.shutter_pending = (ice, seen_at)
         mpp = read_lattice_at_rock(rec, pose, calib, L, q, ice, c)
+        # (cells: a homography the threads leave free at the rock, however well it fits)
+        unsure = rec.grid_sigma_m / min(calib.spacing_x_m, calib.spacing_y_m)
+        if unsure > st.max_grid_sigma_cells:
+            rec.status = (f"grid: the lattice is not fixed at the rock (1 sigma "
+                          f"{unsure:.2f} cell): the threads measured leave it free there")
+            continue
         rec.centre_app, rec.phi, rec.scale = c, phi, s
         if fr.index % outline_every == 0:  # the scale's second ruler
             rec.outline_m = outline_radius(img, pose.H, calib.K, calib.dist, c,

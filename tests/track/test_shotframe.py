@@ -1,6 +1,7 @@
 """Lattice frame -> shot frame and the cumulative angle."""
 
 import numpy as np
+from scipy.stats import binom
 
 from curltrack.track.shotframe import choose_axes, intercept_scatter, to_shot_frame, unwrap_angle
 
@@ -388,7 +389,9 @@ def test_origin_check_says_nothing_on_clean_rows():
     noise 0.3-2 mm, white or AR(1) up to rho 0.6 per row as a tracker's persists, some
     rows 3x noisier): the first rows and the later ones agree, and the check adds an
     error to the origin in at most 5 % of draws (its chi^2 gate is at 99 % for its two
-    windows together; 1-4 % seen)."""
+    windows together; 2.3 % over 3000 draws: 1.7 % white, 2.9 % AR(1)).  The count of
+    200 draws must be plausible for a 5 % rate (binomial tail above 0.001: a fixed
+    count of 10 fails ~0.7 % of runs at the true rate: seed 4175601778, 12 of 200)."""
     seed = int(np.random.SeedSequence().entropy % 2**32)
     rng = np.random.default_rng(seed)
     n, flagged, checked = 200, 0, 0
@@ -400,7 +403,8 @@ def test_origin_check_says_nothing_on_clean_rows():
         checked += out["origin_check_difference_m"] > 0
         flagged += out["origin_check_sigma_m"] > 0
     assert checked > 0.8 * n, f"seed {seed}: checked only {checked} of {n}"
-    assert flagged <= 0.05 * n, f"seed {seed}: {flagged} of {n} clean draws given an origin error"
+    assert binom.sf(flagged - 1, n, 0.05) > 1e-3, (
+        f"seed {seed}: {flagged} of {n} clean draws given an origin error")
 
 
 def test_origin_check_reads_interlaced_fields_errors_field_by_field():
@@ -408,7 +412,8 @@ def test_origin_check_reads_interlaced_fields_errors_field_by_field():
     persisting from field to field (AR(1), rho 0-0.8 per field step, 0.3-2 mm): read
     from one row to the next, the rows' errors look uncorrelated or anti-correlated, and
     the check called ~20 % of clean draws (a 720x480 ladder draw's 0.8 mm origin 9 mm
-    off).  Field by field: at most 5 % of clean draws (~1 % seen), and an error the
+    off).  Field by field: at most 5 % of clean draws (~1 % seen; the count plausible
+    for 5 %, as above), and an error the
     first rows share (12-30x the noise) is still found in >= 75 % (~88 % seen)."""
     seed = int(np.random.SeedSequence().entropy % 2**32)
     rng = np.random.default_rng(seed)
@@ -431,7 +436,8 @@ def test_origin_check_reads_interlaced_fields_errors_field_by_field():
         out = to_shot_frame(t, centre + profile[:, None] * shared, 0.0 * t,
                             np.ones(t.size, bool), field=field)
         found += out["origin_check_sigma_m"] > 0
-    assert flagged <= 0.05 * n, f"seed {seed}: {flagged} of {n} clean draws given an origin error"
+    assert binom.sf(flagged - 1, n, 0.05) > 1e-3, (
+        f"seed {seed}: {flagged} of {n} clean draws given an origin error")
     assert found >= 0.75 * n, f"seed {seed}: a shared error found in {found} of {n}"
 
 
