@@ -1220,7 +1220,16 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                "that disagree")
         warnings.append(f"{path}: {how}, uncertain by ~{1e3 * shot['origin_sigma_m']:.0f} mm "
                         "(included in sigma_xy)")
-    sigma_theta = np.hypot(sig_m / max(lever, 1e-6), shot["theta0_sigma_rad"])
+    theta0_sigma = float(np.hypot(shot["theta0_sigma_rad"], shot["theta0_check_sigma_rad"]))
+    if shot["theta0_check_sigma_rad"] > 0:
+        warnings.append(
+            f"{path}: the first frames' angles miss the later frames' turn at t = 0 by "
+            f"{np.degrees(shot['theta0_check_difference_rad']):.1f} deg, more than their "
+            f"scatter allows: theta0 (every angle is taken from it) rests on frames that "
+            f"share an error (blurred or coded at the rock's fastest), uncertain by "
+            f"~{np.degrees(shot['theta0_check_sigma_rad']):.1f} deg (included in "
+            "sigma_theta)")
+    sigma_theta = np.hypot(sig_m / max(lever, 1e-6), theta0_sigma)
     if shot["theta_unsure"].any():
         # an angle off by an unknown whole turn is not given (contract: x, y kept)
         sigma_theta = np.where(shot["theta_unsure"], np.nan, sigma_theta)
@@ -1372,7 +1381,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         # what the warning above says sigma_xy includes)
         origin_sigma=(shot["origin_sigma_m"]
                       if shot["origin_extrapolated"] or origin_doubtful else None),
-        theta0_sigma=shot["theta0_sigma_rad"], origin_row_sigma=sigma_own)
+        theta0_sigma=theta0_sigma, origin_row_sigma=sigma_own)
     if np.isfinite(cal["scale_xy"]):
         data["sigma_xy"] = np.where(ok, cal["sigma_xy"], np.nan)
     if np.isfinite(cal["scale_theta"]):
@@ -1430,6 +1439,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         frame_y_axis_lattice=shot["y_hat"].tolist(),
         frame_axis_source=shot["direction_source"],
         theta0_lattice_rad=shot["theta0"],
+        theta0_shared_err_rad=float(shot["theta0_check_sigma_rad"]),
         tracking_settings=st.summary(),
         sigma_scale_xy=(round(cal["scale_xy"], 4) if np.isfinite(cal["scale_xy"]) else None),
         sigma_scale_theta=(round(cal["scale_theta"], 4) if np.isfinite(cal["scale_theta"])

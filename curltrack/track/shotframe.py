@@ -804,6 +804,44 @@ def _theta0_sigma(t, theta, field, window_s: float) -> float:
                          scatter=intercept_scatter(t, theta, window_s, end))
 
 
+#: :func:`_theta0_check`'s later fit: from this fraction of theta0's window after the
+#: first row, over this many windows.
+THETA0_CHECK_FROM = 0.5
+THETA0_CHECK_SPAN = 2.0
+#: Its gate on the two values' squared difference over their summed variances (2
+#: sigma: the check only widens theta0's sigma, the safe side).  Clean simulated rows
+#: (the paper's law, white or AR(1) angle noise): 5 of 300 twice, theta0's error over
+#: its sigma RMS 0.93-0.95 -> 0.91; at 6.6 too few of the first rows' shared errors
+#: were found (their theta0 4-17 sigma off left so in ~half the draws).
+THETA0_CHECK_CHI2 = 4.0
+
+
+def _theta0_check(t, theta, field, window_s: float, theta0: float, sigma: float):
+    """(sigma, difference) (rad) of theta0's error that its first rows share: theta0
+    against the same fit to the rows from :data:`THETA0_CHECK_FROM` of its window on,
+    over :data:`THETA0_CHECK_SPAN` windows, extrapolated back to t = 0.  Where the two
+    differ by more than their sigmas allow (:data:`THETA0_CHECK_CHI2`; some rows are
+    in both, so the sum of their variances is the generous side), the excess is the
+    error of angles the first rows share, which neither fit's scatter shows (a PAL
+    camcorder's first 0.3 s of fields, blurred and coded at the rock's fastest, turned
+    slower than the rock: theta0 7.3 deg off under a 1.9 deg sigma, every angle 3.9
+    sigma off).  (0, difference) when they agree, (0, 0) when too few rows follow."""
+    if t.size < 16 or not np.isfinite(sigma):
+        return 0.0, 0.0
+    later = t >= t[0] + THETA0_CHECK_FROM * window_s
+    tl = t[later]
+    if np.count_nonzero(tl <= tl[0] + THETA0_CHECK_SPAN * window_s) < 16 if tl.size else True:
+        return 0.0, 0.0
+    span = THETA0_CHECK_SPAN * window_s
+    theta0_later = float(initial_state(tl, theta[later], span)[0][0])
+    f_later = None if field is None else np.asarray(field)[later]
+    var = sigma ** 2 + _theta0_sigma(tl, theta[later], f_later, span) ** 2
+    d2 = (theta0 - theta0_later) ** 2
+    if not d2 > THETA0_CHECK_CHI2 * var:
+        return 0.0, float(np.sqrt(d2))
+    return float(np.sqrt(d2 - var)), float(np.sqrt(d2))
+
+
 def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.ndarray,
                   up_direction: np.ndarray | None = None,
                   settings: TrackingSettings | None = None,
@@ -907,10 +945,13 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
     # under a 0.9 deg sigma)
     theta0_sigma = _theta0_sigma(ts, ths, fs, window) if ts.size else float("inf")
+    check_th = _theta0_check(ts, ths, fs, window, th0, theta0_sigma)
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
             "origin_sigma_m": float(origin_sigma), "origin_extrapolated": bool(late),
             "origin_check_sigma_m": check["sigma"],
             "origin_check_difference_m": check["difference"],
             "theta_unsure": np.isin(np.arange(t.size), idx[~th_sure]),
-            "theta0_sigma_rad": float(theta0_sigma), "origin_row_weights": weights}
+            "theta0_sigma_rad": float(theta0_sigma), "origin_row_weights": weights,
+            "theta0_check_sigma_rad": check_th[0],
+            "theta0_check_difference_rad": check_th[1]}
