@@ -173,6 +173,10 @@ def _positions_along(lo, hi, step, gap):
     return (cells[:, None] + gap + (np.arange(n) + 0.5) * clear / n).ravel()
 
 
+#: Candidate profiles per family, in units of the budget, beyond which positions along
+#: the threads are thinned evenly before being projected through the lens.
+PRE_THIN = 4
+
 #: Fewest stretches (or, on a thread averaged whole, profiles) kept along each thread
 #: when the frame holds more profiles than wanted: both ends and the middle, so that
 #: every thread's direction is measured, not only its offset.
@@ -214,12 +218,19 @@ def _spread_evenly(fam, line, along, seg_cells, whole, usable, max_profiles):
     rank = np.arange(len(line_of_unit)) - np.searchsorted(line_of_unit, line_of_unit)
     m = np.minimum(n_units, np.maximum(MIN_SPREAD,
                                        np.rint(max_profiles / n_usable * n_units)))
+    # a fine lattice, more threads in view than the budget holds at MIN_SPREAD each:
+    # every so many threads of each family (any of them measures its direction)
+    first_unit = np.r_[True, np.diff(line_of_unit) != 0]
+    expected = float(m[first_unit].sum()) * len(idx) / len(line_of_unit)  # (profiles)
+    every = int(np.ceil(expected / max_profiles)) if expected > 1.25 * max_profiles else 1
+    if every > 1:
+        m = np.where(np.mod(ln[new_unit], every) == 0, m, 0)
     # m points from both ends inclusive: rank r is one of them when rounding it to the
     # nearest of the m and back gives r (steps over 1, so each r maps to one point)
     step = (n_units - 1) / np.maximum(m - 1, 1)
     with np.errstate(invalid="ignore", divide="ignore"):
         chosen = np.rint(np.rint(rank / step) * step) == rank
-    chosen |= n_units == 1
+    chosen = (chosen | (n_units == 1)) & (m > 0)
     keep[idx] = chosen[unit_id]
     return keep
 
@@ -313,6 +324,12 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
         lines = np.arange(np.ceil(lo[fam]), np.floor(hi[fam]) + 1)
         along = _positions_along(lo[other], hi[other], step_cells[fam],
                                  gap_px[other] / p_cell[other])
+        if max_profiles and len(lines) * len(along) > PRE_THIN * max_profiles:
+            # (a fine lattice in a large frame: every n-th position and both ends
+            # before the lens projection, which the budget below thins again)
+            n = len(along)
+            stride = int(np.ceil(len(lines) * n / (PRE_THIN * max_profiles)))
+            along = along[np.unique(np.r_[np.arange(0, n, stride), n - 1])]
         ab = np.empty((len(lines), len(along), 2))
         ab[:, :, fam] = lines[:, None]
         ab[:, :, other] = along

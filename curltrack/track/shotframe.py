@@ -808,11 +808,13 @@ def _theta0_sigma(t, theta, field, window_s: float) -> float:
 #: first row, over this many windows.
 THETA0_CHECK_FROM = 0.5
 THETA0_CHECK_SPAN = 2.0
+#: ... ended before this fraction of the time from the first row to the spin's stop.
+THETA0_CHECK_STOP_FRACTION = 0.6
 #: Its gate on the two values' squared difference over their summed variances (2
 #: sigma: the check only widens theta0's sigma, the safe side).  Clean simulated rows
-#: (the paper's law, white or AR(1) angle noise): 5 of 300 twice, theta0's error over
-#: its sigma RMS 0.93-0.95 -> 0.91; at 6.6 too few of the first rows' shared errors
-#: were found (their theta0 4-17 sigma off left so in ~half the draws).
+#: (the paper's law, white or AR(1) angle noise): 5 and 6 of 300, theta0's error over
+#: its sigma RMS 0.93-0.95 -> 0.87-0.91; at 6.6 too few of the first rows' shared
+#: errors were found (their theta0 4-17 sigma off left so in ~half the draws).
 THETA0_CHECK_CHI2 = 4.0
 
 
@@ -825,14 +827,24 @@ def _theta0_check(t, theta, field, window_s: float, theta0: float, sigma: float)
     error of angles the first rows share, which neither fit's scatter shows (a PAL
     camcorder's first 0.3 s of fields, blurred and coded at the rock's fastest, turned
     slower than the rock: theta0 7.3 deg off under a 1.9 deg sigma, every angle 3.9
-    sigma off).  (0, difference) when they agree, (0, 0) when too few rows follow."""
+    sigma off).  The later fit ends before :data:`THETA0_CHECK_STOP_FRACTION` of the
+    time to the spin's stop (a quadratic through it bends: a phone clip's theta0 read
+    2 deg off a right one).  (0, difference) when they agree, (0, 0) when too few rows
+    follow or the spin stops too soon."""
+    from ..series.stops import rotation_stop
+
     if t.size < 16 or not np.isfinite(sigma):
         return 0.0, 0.0
-    later = t >= t[0] + THETA0_CHECK_FROM * window_s
+    # (a quadratic through the spin's stop bends: its end well before it, as the
+    # origin's check ends before the translation's)
+    stop = rotation_stop(t, theta, float(np.median(np.diff(t))))[0]
+    end = t[0] + (THETA0_CHECK_STOP_FRACTION * (stop - t[0]) if stop is not None else np.inf)
+    start = t[0] + THETA0_CHECK_FROM * window_s
+    span = min(THETA0_CHECK_SPAN * window_s, end - start)
+    later = t >= start
     tl = t[later]
-    if np.count_nonzero(tl <= tl[0] + THETA0_CHECK_SPAN * window_s) < 16 if tl.size else True:
+    if tl.size == 0 or span < window_s or np.count_nonzero(tl <= start + span) < 16:
         return 0.0, 0.0
-    span = THETA0_CHECK_SPAN * window_s
     theta0_later = float(initial_state(tl, theta[later], span)[0][0])
     f_later = None if field is None else np.asarray(field)[later]
     var = sigma ** 2 + _theta0_sigma(tl, theta[later], f_later, span) ** 2
