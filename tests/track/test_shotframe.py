@@ -266,7 +266,9 @@ def test_the_origin_weighs_each_row_by_its_own_sigma():
     rng = np.random.default_rng(seed)
     err = {"weighted": [], "alike": []}
     z = []
-    for _ in range(300):
+    # (600 draws: over 300 the RMS below read 0.86-0.94 on 12 seeds, and seed 796792793
+    # drew 0.79 - the band's edge is the sampling error's, not the sigma's)
+    for _ in range(600):
         late, t, centre, sig = _noisy_start(rng, 8.0)
         ok = np.ones(t.size, bool)
         w = to_shot_frame(t, centre, 2.0 * t, ok, sigma=sig)
