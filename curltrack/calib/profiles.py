@@ -188,6 +188,13 @@ def _line_starts(fam, line):
     return np.concatenate(([True], (fam[1:] != fam[:-1]) | (line[1:] != line[:-1])))
 
 
+def _rank_within(first):
+    """(rank, size) of each element within its run, runs starting where ``first``."""
+    start = np.flatnonzero(first)
+    size = np.diff(np.append(start, len(first)))
+    return np.arange(len(first)) - np.repeat(start, size), np.repeat(size, size)
+
+
 def _spread_evenly(fam, line, along, seg_cells, whole, usable, max_profiles):
     """Which profiles to sample when the frame holds more than ``max_profiles``.
 
@@ -213,15 +220,13 @@ def _spread_evenly(fam, line, along, seg_cells, whole, usable, max_profiles):
     first_of_line = _line_starts(f, ln)
     new_unit = first_of_line | np.concatenate(([True], unit[1:] != unit[:-1]))
     unit_id = np.cumsum(new_unit) - 1
-    line_of_unit = (np.cumsum(first_of_line) - 1)[new_unit]
-    n_units = np.bincount(line_of_unit)[line_of_unit]
-    rank = np.arange(len(line_of_unit)) - np.searchsorted(line_of_unit, line_of_unit)
+    first_unit = first_of_line[new_unit]  # (a thread's first unit)
+    rank, n_units = _rank_within(first_unit)
     m = np.minimum(n_units, np.maximum(MIN_SPREAD,
                                        np.rint(max_profiles / n_usable * n_units)))
     # a fine lattice, more threads in view than the budget holds at MIN_SPREAD each:
     # every so many threads of each family (any of them measures its direction)
-    first_unit = np.r_[True, np.diff(line_of_unit) != 0]
-    expected = float(m[first_unit].sum()) * len(idx) / len(line_of_unit)  # (profiles)
+    expected = float(m[first_unit].sum()) * len(idx) / len(first_unit)  # (profiles)
     every = int(np.ceil(expected / max_profiles)) if expected > 1.25 * max_profiles else 1
     if every > 1:
         m = np.where(np.mod(ln[new_unit], every) == 0, m, 0)
@@ -242,10 +247,8 @@ def _segment_of(fam, line, along, seg_cells, whole):
     seg = np.floor(along / seg_cells[fam])
     if not whole.any():
         return seg
-    first = np.flatnonzero(_line_starts(fam, line))
-    counts = np.diff(np.append(first, len(fam)))
-    rank = np.arange(len(fam)) - np.repeat(first, counts)
-    return np.where(whole[fam], (2 * rank >= np.repeat(counts, counts)).astype(float), seg)
+    rank, size = _rank_within(_line_starts(fam, line))
+    return np.where(whole[fam], (2 * rank >= size).astype(float), seg)
 
 
 def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0,
@@ -274,14 +277,16 @@ def sample_threads(image_bgr, Hc, K, dist, model, half_px, step_px: float = 10.0
     blur_px : (float, float)
         Expected motion-blur length across the threads of family A / B (px): the
         threads are found on profiles smoothed by a box a quarter this long, and
-        averaged over whole threads when it exceeds 6 px (a smeared thread is faint).
+        averaged over each half of a thread when it exceeds 6 px (a smeared thread
+        is faint; two points, so that its direction is still measured).
     seg_px : float
         Length (px) of thread over which consecutive profiles are averaged into one
         point.
     max_profiles : int, optional
         About the largest number of profiles wanted: when the frame holds more, only an
         evenly spread fraction of each thread's segments is sampled (fewer points, each
-        as good), or of the profiles of a thread averaged whole.
+        as good), or of the profiles of a thread averaged by halves; always both ends
+        of every thread (:func:`_spread_evenly`).
     mask : (H, W) uint8, optional
         Nonzero = ignore.
     max_radius_px : float, optional

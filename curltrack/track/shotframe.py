@@ -780,19 +780,23 @@ def choose_axes(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x_hat, y_hat
 
 
-def _theta0_sigma(t, theta, field, window_s: float) -> float:
+def _spin_stop(t, theta):
+    """The spin's stop (s, :func:`~curltrack.series.stops.rotation_stop`) read on rows
+    ``t``, ``theta``, or None (fewer than 16 rows, or no stop)."""
+    from ..series.stops import rotation_stop
+
+    return rotation_stop(t, theta, float(np.median(np.diff(t))))[0] if t.size >= 16 else None
+
+
+def _theta0_sigma(t, theta, field, window_s: float, stop) -> float:
     """1 sigma (rad) of theta0 (:func:`_origin_sigma` of the angle): its noise read on the
     rows before the spin stops (:func:`~curltrack.series.stops.rotation_stop`; the
     rows of its last approach, whose angle bends faster and faster, read as noise that
     persists: a clean 1280x720 hand-held clip's 0.13 deg white error as 0.41 deg at
     rho 0.93, theta0's sigma 3.6x its rows' own) and at least its window's
-    :func:`intercept_scatter` there."""
-    from ..series.stops import rotation_stop
-
-    end = None
-    if t.size >= 16:
-        stop = rotation_stop(t, theta, float(np.median(np.diff(t))))[0]
-        end = stop if stop is not None and stop > t[0] else None
+    :func:`intercept_scatter` there.  ``stop``: the spin's stop on these rows
+    (:func:`_spin_stop`)."""
+    end = stop if stop is not None and stop > t[0] else None
     turning = np.ones(t.size, bool) if end is None else t < end
     if np.count_nonzero(turning) < 30:  # (too few to read the noise on: all of them)
         turning[:] = True
@@ -818,7 +822,7 @@ THETA0_CHECK_STOP_FRACTION = 0.6
 THETA0_CHECK_CHI2 = 4.0
 
 
-def _theta0_check(t, theta, field, window_s: float, theta0: float, sigma: float):
+def _theta0_check(t, theta, field, window_s: float, theta0: float, sigma: float, stop):
     """(sigma, difference) (rad) of theta0's error that its first rows share: theta0
     against the same fit to the rows from :data:`THETA0_CHECK_FROM` of its window on,
     over :data:`THETA0_CHECK_SPAN` windows, extrapolated back to t = 0.  Where the two
@@ -829,15 +833,12 @@ def _theta0_check(t, theta, field, window_s: float, theta0: float, sigma: float)
     slower than the rock: theta0 7.3 deg off under a 1.9 deg sigma, every angle 3.9
     sigma off).  The later fit ends before :data:`THETA0_CHECK_STOP_FRACTION` of the
     time to the spin's stop (a quadratic through it bends: a phone clip's theta0 read
-    2 deg off a right one).  (0, difference) when they agree, (0, 0) when too few rows
-    follow or the spin stops too soon."""
-    from ..series.stops import rotation_stop
-
+    2 deg off a right one; ``stop``: :func:`_spin_stop` of these rows).  (0, difference)
+    when they agree, (0, 0) when too few rows follow or the spin stops too soon."""
     if t.size < 16 or not np.isfinite(sigma):
         return 0.0, 0.0
     # (a quadratic through the spin's stop bends: its end well before it, as the
     # origin's check ends before the translation's)
-    stop = rotation_stop(t, theta, float(np.median(np.diff(t))))[0]
     end = t[0] + (THETA0_CHECK_STOP_FRACTION * (stop - t[0]) if stop is not None else np.inf)
     start = t[0] + THETA0_CHECK_FROM * window_s
     span = min(THETA0_CHECK_SPAN * window_s, end - start)
@@ -847,7 +848,8 @@ def _theta0_check(t, theta, field, window_s: float, theta0: float, sigma: float)
         return 0.0, 0.0
     theta0_later = float(initial_state(tl, theta[later], span)[0][0])
     f_later = None if field is None else np.asarray(field)[later]
-    var = sigma ** 2 + _theta0_sigma(tl, theta[later], f_later, span) ** 2
+    var = sigma ** 2 + _theta0_sigma(tl, theta[later], f_later, span,
+                                     _spin_stop(tl, theta[later])) ** 2
     d2 = (theta0 - theta0_later) ** 2
     if not d2 > THETA0_CHECK_CHI2 * var:
         return 0.0, float(np.sqrt(d2))
@@ -956,8 +958,9 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     # every angle is taken from theta0, itself a fit: its error is every row's (the
     # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
     # under a 0.9 deg sigma)
-    theta0_sigma = _theta0_sigma(ts, ths, fs, window) if ts.size else float("inf")
-    check_th = _theta0_check(ts, ths, fs, window, th0, theta0_sigma)
+    spin_stop = _spin_stop(ts, ths)
+    theta0_sigma = _theta0_sigma(ts, ths, fs, window, spin_stop) if ts.size else float("inf")
+    check_th = _theta0_check(ts, ths, fs, window, th0, theta0_sigma, spin_stop)
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
             "origin_sigma_m": float(origin_sigma), "origin_extrapolated": bool(late),
