@@ -61,7 +61,13 @@ def test_velocities_match_the_simulated_truth_within_their_sigma(rho):
     assert out.loc[d["ok"] == 0, "vx"].isna().all()
     # after the stop, at rest
     rest = (d["ok"] == 1) & (d["t"] > t_stop + 0.3)
-    assert (np.abs(out["speed"][rest]) < 4 * out["sigma_speed"][rest] + 1e-3).all(), msg
+    for c in ("vx", "vy"):
+        assert (np.abs(out[c][rest]) < 5 * out[f"sigma_{c}"][rest] + 1e-3).all(), (c, msg)
+    # At rest the speed is |(vx, vy)|: Rayleigh, not Gaussian - its tail beyond 4 sigma
+    # is e^-8 per row, not 6e-5 (300 draws: the largest over ~21 rest rows passed 4 sigma
+    # in 0.7 %, seed 958463446 4.3), and beyond sqrt(2 ln 1e6) = 5.3 sigma 1e-6.
+    bound = np.sqrt(2 * np.log(1e6))
+    assert (out["speed"][rest] < bound * out["sigma_speed"][rest] + 1e-3).all(), msg
 
 
 def test_cli_export(tmp_path):
