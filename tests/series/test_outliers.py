@@ -117,3 +117,37 @@ def test_a_glitch_is_short_a_long_box_is_a_level():
         what = f"seed {seed}: {rate:g} Hz, box rows {a}-{b} ({hold:.1f} s)"
         assert isolated_steps(r, t=t) == ([(a, b)] if found else []), (what, isolated_steps(r, t=t))
         assert isolated_steps(r) == [(a, b)], what   # (no times: no limit)
+
+
+def test_a_glitch_on_white_noise_is_isolated_at_the_bound_white_noise_keeps():
+    """A glitch is taken out only where the rest of the series does not jump too: at
+    half the threshold no more others than white noise gives but once in 10^4 series
+    (:func:`white_jumps_bound`).  White noise's own rate is what the bound assumes, and
+    a glitch on white noise of any length is found though its differences hold their
+    chance share of half-threshold jumps (CI seed 876457806: 10 at 795 rows went over
+    the former bound of 2 + 1 %)."""
+    from scipy.stats import binom
+
+    from curltrack.series.noise import (OUTLIER_K, WHITE_HALF_RATE, isolated_steps,
+                                        white_jumps_bound)
+
+    seed = _seed()
+    rng = np.random.default_rng(seed)
+    sizes = rng.integers(100, 1500, 400)
+    counts = np.array([isolated_outliers(np.diff(rng.normal(size=int(n))) / np.sqrt(2),
+                                         0.5 * OUTLIER_K).sum() for n in sizes])
+    total = int(sizes.sum())
+    # (the rate is a measured one: its count within the binomial's 1e-4 tails)
+    assert binom.ppf(1e-4, total, WHITE_HALF_RATE * 0.85) <= counts.sum() \
+        <= binom.isf(1e-4, total, WHITE_HALF_RATE), (seed, counts.sum(), total)
+    over = np.mean([c > white_jumps_bound(n - 1) for c, n in zip(counts, sizes)])
+    assert over <= 0.01, (seed, over)
+    for _ in range(20):
+        n = int(rng.integers(200, 1500))
+        r = rng.normal(size=n)
+        a, hold = int(rng.integers(20, n // 2)), int(rng.integers(5, 90))
+        r[a:a + hold] += rng.choice([-1, 1]) * rng.uniform(15, 60)
+        half = isolated_outliers(np.diff(r) / np.sqrt(2), 0.5 * OUTLIER_K).sum() - 2
+        boxes = isolated_steps(r)
+        if half <= white_jumps_bound(n - 1):
+            assert boxes == [(a, a + hold)], (seed, n, a, hold, boxes)
