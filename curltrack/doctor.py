@@ -128,7 +128,7 @@ def _sample(verdict, image, rig, det):
     out["grid"] = True
     out["spacing_px"], out["residual_px"] = float(cal.spacing_px), float(cal.residual_px)
     out["n_threads"] = list(cal.n_threads)
-    out["lens"] = (float(cal.dist[0]), float(cal.dist[1]), cal.lens_radius_px)
+    out["lens"] = (float(cal.dist[0]), float(cal.dist[1]), cal.lens_radius_px, float(cal.K[0, 0]))
     if out["yaw_deg"] is None:
         out["yaw_deg"] = cal.yaw_deg()  # image +u in the lattice
     if xy is not None:
@@ -368,9 +368,10 @@ def _grid_checks(rep, rig, samples):
               f"{res:.2f} px")
     cut = [s["lens"] for _, s in found if s["lens"][2] is not None]
     if cut:  # a strong wide-angle lens, confirmed by the threads only near the centre
-        k1, k2, r = cut[0][0], cut[0][1], min(c[2] for c in cut)
+        k1, k2, r, f = cut[0][0], cut[0][1], min(c[2] for c in cut), cut[0][3]
         values["lens_radius_px"] = r
-        detail += (f"; wide-angle lens (k1 {k1:.3f}, k2 {k2:.3f}) confirmed by the threads "
+        detail += (f"; wide-angle lens (k1 {k1:.3f}, k2 {k2:.3f} at the reference focal "
+                   f"length {f:.0f} px) confirmed by the threads "
                    f"within {r:.0f} px of the image centre: the rock is not measured beyond")
     if len(found) < n:
         lost = [f for f, s in samples if not s["grid"]]

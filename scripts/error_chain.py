@@ -116,6 +116,7 @@ def error_chain(video: Path, rig, truth: pd.DataFrame) -> tuple[pd.DataFrame, di
     notes = dict(camera_height_est_m=h_est, camera_height_err_m=shot.meta.get(
         "camera_height_err_m"), camera_height_true_m=float(np.median(cam_h - depth)),
         lens=tuple(float(v) for v in calib.dist[:2]),
+        lens_focal_ref_px=float(calib.K[0, 0]),  # (k1 at the lens's own f: x (f / this)^2)
         principal_point_px=tuple(float(v) for v in calib.K[:2, 2]),
         marker_px_error_mean=tuple(np.nanmean(mk_err, 0).round(3)),
         marker_px_error_std=tuple(np.nanstd(mk_err, 0).round(3)))

@@ -472,7 +472,8 @@ def calibrate_frame(image_bgr, rig, mask=None) -> Calibration:
         raise first
     if lens_radius is not None:
         cal.lens_radius_px = float(lens_radius)
-        cal.notes.append(f"wide-angle lens (k1 = {dist[0]:.3f}, k2 = {dist[1]:.3f}): the "
+        cal.notes.append(f"wide-angle lens (k1 = {dist[0]:.3f}, k2 = {dist[1]:.3f} at the "
+                         f"reference focal length {cal.K[0, 0]:.0f} px): the "
                          f"threads confirm the lens model only within {lens_radius:.0f} px "
                          f"of the principal point; the rock is not measured beyond")
     return cal

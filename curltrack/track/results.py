@@ -1455,6 +1455,7 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         meta["rolling_shutter_ms"] = float(rig.rolling_shutter_ms)
     if calib is not None:
         meta["lens_k1"], meta["lens_k2"] = float(calib.dist[0]), float(calib.dist[1])
+        meta["lens_focal_ref_px"] = float(calib.K[0, 0])
         if calib.lens_radius_px is not None:
             meta["lens_radius_px"] = float(calib.lens_radius_px)
     return Series(data, meta, None)
