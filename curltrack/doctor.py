@@ -128,7 +128,8 @@ def _sample(verdict, image, rig, det):
     out["grid"] = True
     out["spacing_px"], out["residual_px"] = float(cal.spacing_px), float(cal.residual_px)
     out["n_threads"] = list(cal.n_threads)
-    out["lens"] = (float(cal.dist[0]), float(cal.dist[1]), cal.lens_radius_px, float(cal.K[0, 0]))
+    out["lens"] = (float(cal.dist[0]), float(cal.dist[1]), cal.lens_radius_px,
+                   float(cal.K[0, 0]))   # (k1, k2 at this reference focal length, px)
     if out["yaw_deg"] is None:
         out["yaw_deg"] = cal.yaw_deg()  # image +u in the lattice
     if xy is not None:

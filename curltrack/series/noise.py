@@ -489,8 +489,8 @@ def isolated_steps(r, k: float = OUTLIER_K, known=(), t=None) -> list[tuple[int,
     for 0.5-3 s and read 3-15 cm off: four in seven clean shots with one or two such
     glitches on white noise were ``unexplained``).  Only isolated ones: with more than
     :data:`MAX_GLITCH_STEPS` jumps, more others at half the threshold than white noise
-    gives (:func:`white_jumps_bound`), or a jump that does not return, the errors are the instrument's way
-    of measuring, not glitches, and nothing is returned.
+    gives (:func:`white_jumps_bound`), or a jump that does not return, the errors are
+    the instrument's way of measuring, not glitches, and nothing is returned.
 
     Parameters
     ----------

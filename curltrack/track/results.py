@@ -288,7 +288,7 @@ def _motion_share(d, m) -> tuple[np.ndarray, np.ndarray]:
     # 1.11 with 20x a Gaussian's 4-sigma tail (3000 draws: the unit test failed 2.75 %
     # of its runs, CI seed 3812700248); the larger of the two: 1.03, 5x.
     n_keep = int(keep.sum())
-    dof = n_keep / max(n_keep - k - 1, 1)
+    free = max(n_keep - k - 1, 1)   # (the residuals' degrees of freedom)
     xx, xx1 = X.T @ X, X[:-1].T @ X[1:]
     sig = np.empty((k, k))
     for j in range(k):
@@ -298,8 +298,8 @@ def _motion_share(d, m) -> tuple[np.ndarray, np.ndarray]:
         meat = meat + lag + lag.T
         s2 = float(r[:, j] @ r[:, j])
         rho1 = float(r[:-1, j] @ r[1:, j]) / max(s2, 1e-300)
-        model = s2 / max(n_keep - k - 1, 1) * (xx + rho1 * (xx1 + xx1.T))
-        sig[j] = np.sqrt(np.maximum(np.maximum(np.diag(bread @ meat @ bread) * dof,
+        model = s2 / free * (xx + rho1 * (xx1 + xx1.T))
+        sig[j] = np.sqrt(np.maximum(np.maximum(np.diag(bread @ meat @ bread) * n_keep / free,
                                                np.diag(bread @ model @ bread))[1:], 0.0))
     return coef[1:].T, sig
 
