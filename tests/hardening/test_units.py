@@ -265,9 +265,13 @@ def test_a_turn_across_a_gap_is_not_taken_for_a_wrap(seed):
     s = _shot(seed, v0=float(rng.uniform(1.4, 2.0)), omega0=spin * rng.choice([-1, 1]))
     d = s.data
     dt = float(np.median(np.diff(d.t)))
-    # a gap whose turn lies within 1 rad of a whole turn, early in the shot (fast spin)
-    gap = float(rng.uniform(2 * np.pi - 0.9, 2 * np.pi + 0.9)) / spin
+    # a gap whose turn lies within 1 rad of a whole turn, early in the shot (fast spin);
+    # the spin decays across a gap of 1.5-4.5 s, so its end is read off the turn made
     t0 = float(rng.uniform(0.5, 1.5))
+    turn = np.abs(d.theta.to_numpy() - np.interp(t0, d.t, d.theta))
+    after = (d.t.to_numpy() > t0) & (turn >= rng.uniform(2 * np.pi - 0.9, 2 * np.pi + 0.9))
+    assert after.any(), f"seed {seed}: the rock never turns that far"
+    gap = float(d.t.to_numpy()[after][0]) - t0
     keep = (d.t < t0) | (d.t > t0 + gap)
     gapped = Series(d[keep].reset_index(drop=True), s.meta)
     jump = np.abs(np.diff(gapped.data.theta)).max()
