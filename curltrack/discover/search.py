@@ -275,7 +275,7 @@ def score_candidate(base: JointModel, fit0: FitOut, cand, rng,
     blocks, r_null = null_noise(base, fit0.r, r_alt)
     thr = scoring.bootstrap_threshold(bases, r_null, blocks, ks, n, rng,
                                       level=_level(cand), n_boot=n_boot,
-                                      groups=row_groups(base))
+                                      groups=row_groups(base), J0=fit0.J)
     loc = dict(locs[i_loc])
     score = CandidateScore(cand.name, lin, lin, thr, None, loc, note=cand.note, k=k,
                            extension=cand.extension, per_shot=cand.per_shot)
@@ -992,7 +992,8 @@ def rescore(score: CandidateScore, base: JointModel, fit0: FitOut, rng,
                                                   _no_shorter(block_lengths(base, noise_raw),
                                                               score._blocks), ks, n, rng,
                                                   level=_level(score._refine[0]),
-                                                  n_boot=n_boot, groups=groups)
+                                                  n_boot=n_boot, groups=groups,
+                                                  J0=fit0.J * scale[:, None])
     # the threshold is a quantile of the *linearised* scan's best delta-BIC (exact near
     # the null).  Noise that persists is far from that: its excursions are many AR(1)
     # sigmas, and a nonlinear refit with its locations free can gain more on them than
@@ -1059,7 +1060,14 @@ def _judge_few_rows(score: CandidateScore, fit0: FitOut, scale, groups) -> None:
     same everywhere, and the first rows' are not.  ``groups``: the row of each residual
     (:func:`row_groups`)."""
     share = (fit0.r * scale) ** 2 - (score.fit.r * scale) ** 2
-    dbic = scoring.without_few_rows(share, groups) - score.k * np.log(fit0.n)
+    # (and the baseline refitted without them: rows far off pull its fit, and a candidate
+    # that takes them away gains on the other rows too)
+    J0 = fit0.J * scale[:, None]
+    Q0 = scoring.orth_basis(J0)
+    r0 = fit0.r * scale
+    refit = scoring.refit_gain_without(Q0, r0 - Q0 @ (Q0.T @ r0),
+                                       scoring.top_rows(share, groups))
+    dbic = scoring.without_few_rows(share, groups) - refit - score.k * np.log(fit0.n)
     thr = score.threshold
     # (calibrated as the data's statistic is; the absolute floor of strong evidence,
     # :func:`.scoring.support_level`, is the whole gain's: without its best rows a real
