@@ -834,12 +834,17 @@ def _theta0_check(t, theta, field, window_s: float, theta0: float, sigma: float,
     sigma off).  The later fit ends before :data:`THETA0_CHECK_STOP_FRACTION` of the
     time to the spin's stop (a quadratic through it bends: a phone clip's theta0 read
     2 deg off a right one; ``stop``: :func:`_spin_stop` of these rows).  (0, difference)
-    when they agree, (0, 0) when too few rows follow or the spin stops too soon."""
+    when they agree, (0, 0) when too few rows follow, or the spin stops or the rows end
+    before the later fit spans one window."""
     if t.size < 16 or not np.isfinite(sigma):
         return 0.0, 0.0
     # (a quadratic through the spin's stop bends: its end well before it, as the
     # origin's check ends before the translation's)
     end = t[0] + (THETA0_CHECK_STOP_FRACTION * (stop - t[0]) if stop is not None else np.inf)
+    # ... and where the rows end: a 2 s interlaced clip whose rock still spun left
+    # 1.2 s of rows to a fit meant for 3.2, extrapolated back 0.8 s - its slow error
+    # (0.3 deg wander) came out 2 deg, and a right theta0 was widened to 2.1 deg
+    end = min(end, float(t[-1]))
     start = t[0] + THETA0_CHECK_FROM * window_s
     span = min(THETA0_CHECK_SPAN * window_s, end - start)
     later = t >= start

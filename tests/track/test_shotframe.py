@@ -648,3 +648,35 @@ def test_theta0_check_says_nothing_on_clean_angles_and_finds_what_the_first_shar
     assert big.sum() >= 10, msg
     assert np.mean(z_after[big] < 4) >= FOUND_SHARE, (msg, np.round(z_before[big], 1),
                                                       np.round(z_after[big], 1))
+
+
+def test_theta0_check_needs_a_window_of_later_rows():
+    """The check's later fit spans THETA0_CHECK_SPAN windows from THETA0_CHECK_FROM of
+    one on; where the rows end before it spans one window (a 2 s interlaced clip whose
+    rock still spun: 1.2 s of rows for a fit meant for 3.2 s, extrapolated back 0.8 s,
+    its slow error 0.3 deg read as 2 deg and a right theta0 widened to 2.1 deg - CI
+    seeds 2913829835, 4079382218), it says nothing; with a window and more it checks."""
+    from curltrack.track.shotframe import (THETA0_CHECK_FROM, _spin_stop, _theta0_check,
+                                           _theta0_sigma, initial_state)
+
+    seed = int(np.random.SeedSequence().entropy % 2**32)
+    rng = np.random.default_rng(seed)
+    for _ in range(20):
+        t, _, angle, _, _ = _spinning_rows(rng)
+        theta = np.unwrap(angle)
+        window = rng.uniform(0.5, 1.2)
+        start = t[0] + THETA0_CHECK_FROM * window
+        for reach, checked in ((rng.uniform(0.3, 0.95), False), (rng.uniform(1.05, 2.0), True)):
+            keep = t <= start + reach * window
+            tk, qk = t[keep], theta[keep]
+            stop = _spin_stop(tk, qk)
+            if checked and stop is not None and stop < t[-1]:
+                continue  # (the spin's stop ends it sooner: its own rule)
+            th0 = float(initial_state(tk, qk, window)[0][0])
+            sigma = _theta0_sigma(tk, qk, None, window, stop)
+            out = _theta0_check(tk, qk, None, window, th0, sigma, stop)
+            what = f"seed {seed}: window {window:.2f} s, rows to {reach:.2f} of one: {out}"
+            if not checked:
+                assert out == (0.0, 0.0), what
+            elif np.count_nonzero(tk >= start) >= 16:
+                assert out[1] > 0.0, what
