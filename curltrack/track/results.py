@@ -16,7 +16,7 @@ from .parallax import (ICE_REFRACTIVE_INDEX, HeightEstimate, camera_centre, corr
                        layout_scale_mismatch)
 from .scatter import CLIP as PATH_CLIP
 from .shotframe import (WINDOW_S, initial_state, leading_strays, origin_weights, row_weights,
-                        to_shot_frame)
+                        theta0_fit, to_shot_frame)
 from ..series.stops import detect_stops
 from ..sanity import speed_rise
 
@@ -111,6 +111,32 @@ def _unmeasure(data, ok, mask, frame, warnings, why: str):
     return ok & ~mask
 
 
+def _refit_theta0(shot: dict, t, field, angles, lean: bool = False) -> None:
+    """theta0 fitted again (:func:`~.shotframe.theta0_fit`, its window and rows as
+    before) to ``angles`` ((N,) rad from the old theta0, NaN at rows not used), and
+    ``shot``'s angles, theta0 and its uncertainty updated in place.
+
+    ``lean``: the angles were mended (the fields' difference taken off) and theta0 is
+    kept: the new fit's distance from it, ``shot["theta0_lean_rad"]``, is added to its
+    sigma.  Otherwise theta0 moves by the new fit's change beyond that lean (rows left
+    out), the lean still in its sigma."""
+    use = np.isfinite(angles)
+    fields = (field >= 0).any()
+    again = theta0_fit(t[use], angles[use], field[use] if fields else None,
+                       shot["theta0_window_s"])
+    th0 = again.pop("theta0")
+    if lean:
+        shot["theta0_lean_rad"] = th0
+    else:
+        move = th0 - shot["theta0_lean_rad"]
+        shot["theta"] = shot["theta"] - move
+        shot["theta0_rows"] = angles - move
+        shot["theta0"] = shot["theta0"] + move
+    again["theta0_sigma_rad"] = float(np.hypot(again["theta0_sigma_rad"],
+                                               shot["theta0_lean_rad"]))
+    shot.update(again)
+
+
 def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, sys_theta,
                     origin_sigma, theta0_sigma, origin_shared: float = 0.0,
                     origin_row_sigma=None) -> dict:
@@ -135,7 +161,7 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     its own sigmas) with fewer than :data:`MIN_SIGMA_DOF` degrees of freedom.
     ``off_path`` ((N,) bool): rows the path through the others misses by more than
     :data:`~curltrack.track.scatter.CLIP` times their ``sigma_xy`` (wrong rows, for
-    the caller to refuse); ``n_wrong``: the rows left out of the scale; ``unchecked``
+    the caller to refuse); ``off_path_theta`` likewise for the angle (wrong angles); ``n_wrong``: the rows left out of the scale; ``unchecked``
     ((N,) bool): rows amid refused frames too few rows around could check
     (:func:`~curltrack.track.scatter.path_scatter`; the caller refuses them too).
     """
@@ -144,6 +170,7 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     n = len(t)
     out = dict(scale_xy=np.nan, scale_theta=np.nan, sigma_xy=np.full(n, np.nan),
                sigma_theta=np.full(n, np.nan), n_wrong=0, off_path=np.zeros(n, bool),
+               off_path_theta=np.zeros(n, bool),
                unchecked=np.zeros(n, bool))
     tt = np.where(ok, t, np.nan)
     br = [b for b in (stops.t_stop_translation,) if b]
@@ -178,9 +205,11 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
         fast = c["scale"] * pix_theta
         measured = ok & np.isfinite(theta)
         slow2 = THETA0_SLOW_RATIO * float(np.median(fast[measured])) ** 2 if measured.any() else 0.0
-        out.update(scale_theta=c["scale"],
-                   sigma_theta=np.sqrt(fast ** 2 + theta0_sigma ** 2 + slow2
-                                       + np.asarray(sys_theta) ** 2))
+        sigma_theta = np.sqrt(fast ** 2 + theta0_sigma ** 2 + slow2
+                              + np.asarray(sys_theta) ** 2)
+        with np.errstate(invalid="ignore"):
+            wrong = c["off_path"] & (c["miss"] > PATH_CLIP * sigma_theta)
+        out.update(scale_theta=c["scale"], sigma_theta=sigma_theta, off_path_theta=wrong)
     return out
 
 
@@ -1231,6 +1260,25 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
                "that disagree")
         warnings.append(f"{path}: {how}, uncertain by ~{1e3 * shot['origin_sigma_m']:.0f} mm "
                         "(included in sigma_xy)")
+    pull_th = None
+    shot["theta0_lean_rad"] = 0.0
+    if (fld >= 0).any() and (shared_colour or moved_by_share):
+        # the fields' angles differ as their positions did (their markers' colour mixed,
+        # by a share of the image's turn between them): half of it taken off each, as it
+        # changes over the shot - theta is cumulative only here (a rendered DV clip's
+        # fields 1.5 deg apart, theta 1.21 deg RMS) - and theta0 fitted again to the
+        # angles so mended, for its sigma: read with the fields apart, their difference
+        # was an error persisting within each field (a DV bench clip: theta0 0.30 deg off
+        # under a 3.1 deg sigma).  Its value is kept, the new one's distance from it
+        # added to its sigma: the fields' difference is least sure at the release, where
+        # the image moves fastest (the mended angles' theta0 was 0.30 -> 0.06 deg off on
+        # that clip, but 0.31 -> 0.49 and 0.82 -> 1.56 on two sweep camcorders)
+        turn = image_turn(records, t, fld, ok, shot["theta"], calib) * (0.5 / info.fps)
+        pull_th = field_offset_along(t, shot["theta"][:, None], fld, ok,
+                                     motion=turn[:, None])[:, 0]
+        shot["theta"] = shot["theta"] + half[:, 0] * pull_th
+        shot["theta0_rows"] = shot["theta0_rows"] + half[:, 0] * pull_th
+        _refit_theta0(shot, t, fld, shot["theta0_rows"], lean=True)
     theta0_sigma = float(np.hypot(shot["theta0_sigma_rad"], shot["theta0_check_sigma_rad"]))
     if shot["theta0_check_sigma_rad"] > 0:
         warnings.append(
@@ -1252,14 +1300,6 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     if any(r.field is not None for r in records):
         # the two fields disagree systematically (mis-registration, aliasing, chroma):
         # half their offset is an error of every row that the pixel noise does not show
-        if shared_colour or moved_by_share:
-            # (as the positions above; theta is cumulative only here: a rendered DV clip's
-            # fields, their markers' colour mixed, 1.5 deg apart, theta 1.21 deg RMS)
-            # ... its share of the image's turn between the fields fitted first
-            turn = image_turn(records, t, fld, ok, shot["theta"], calib) * (0.5 / info.fps)
-            pull_th = field_offset_along(t, shot["theta"][:, None], fld, ok,
-                                         motion=turn[:, None])[:, 0]
-            shot["theta"] = shot["theta"] + half[:, 0] * pull_th
         if shared_colour:
             moved = np.hypot(*pull_xy[fld >= 0].T)
             warnings.append(
@@ -1381,18 +1421,41 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
     stops = detect_stops(data, info.fps * (2 if fields else 1))
     # the reported sigmas: the random part's scale measured on this video (sigma_xy,
     # sigma_theta above stay where it cannot be measured)
-    cal = calibrate_sigma(
-        t, np.column_stack([shot["x"], shot["y"]]), shot["theta"], ok,
-        fld, stops,
-        pix_xy=est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2), pix_theta=sig_m / max(lever, 1e-6),
-        sys_xy=np.sqrt(sigma_parallax ** 2 + off_xy ** 2 + sig_local ** 2),
-        origin_shared=origin_shared,
-        sys_theta=off_theta,
-        # (the origin's own fit error where it is extrapolated or its frames disagree:
-        # what the warning above says sigma_xy includes)
-        origin_sigma=(shot["origin_sigma_m"]
-                      if shot["origin_extrapolated"] or origin_doubtful else None),
-        theta0_sigma=theta0_sigma, origin_row_sigma=sigma_own)
+    def calibrate(theta0_sigma, stops):
+        return calibrate_sigma(
+            t, np.column_stack([shot["x"], shot["y"]]), shot["theta"], ok,
+            fld, stops,
+            pix_xy=est.k * np.sqrt(sig_m ** 2 / M + sig_g ** 2),
+            pix_theta=sig_m / max(lever, 1e-6),
+            sys_xy=np.sqrt(sigma_parallax ** 2 + off_xy ** 2 + sig_local ** 2),
+            origin_shared=origin_shared,
+            sys_theta=off_theta,
+            # (the origin's own fit error where it is extrapolated or its frames
+            # disagree: what the warning above says sigma_xy includes)
+            origin_sigma=(shot["origin_sigma_m"]
+                          if shot["origin_extrapolated"] or origin_doubtful else None),
+            theta0_sigma=theta0_sigma, origin_row_sigma=sigma_own)
+
+    cal = calibrate(theta0_sigma, stops)
+    # an angle the rock's smooth path through the others misses by more than CLIP times
+    # its own sigma_theta: a marker mislocated, the row's position still right (a DV
+    # bench clip: five fields 4.8-5.8 deg off at a 0.5 deg sigma, the rock at rest) -
+    # left empty, and theta0, its sigma and the angles' scale read again without it
+    wrong_theta = np.asarray(cal["off_path_theta"], bool) & ok & np.isfinite(shot["theta"])
+    if wrong_theta.any():
+        warnings.append(f"{path}: frame(s) {frame_ranges(frame[wrong_theta])}: the rock's "
+                        f"angle is off its smooth path through the other rows by more "
+                        f"than {PATH_CLIP:g} times sigma_theta (a marker error): theta "
+                        "left empty (x, y kept)")
+        shot["theta"] = np.where(wrong_theta, np.nan, shot["theta"])
+        _refit_theta0(shot, t, fld, np.where(wrong_theta, np.nan, shot["theta0_rows"]))
+        theta0_sigma = float(np.hypot(shot["theta0_sigma_rad"],
+                                      shot["theta0_check_sigma_rad"]))
+        data["theta"] = np.where(np.isfinite(data["theta"]), shot["theta"], np.nan)
+        sigma_theta = np.where(wrong_theta, np.nan, sigma_theta)
+        stops = detect_stops(data, info.fps * (2 if fields else 1))
+        cal.update({k: v for k, v in calibrate(theta0_sigma, stops).items()
+                    if k in ("scale_theta", "sigma_theta")})
     if np.isfinite(cal["scale_xy"]):
         data["sigma_xy"] = np.where(ok, cal["sigma_xy"], np.nan)
     if np.isfinite(cal["scale_theta"]):

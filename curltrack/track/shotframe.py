@@ -905,8 +905,11 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
         (bool), ``origin_check_sigma_m`` and ``origin_check_difference_m``: the error
         its first rows share, which its fit cannot see (m per coordinate; 0 when the
         later rows agree) and the two values' distance (m; :func:`origin_check`),
-        ``theta0_sigma_rad``: theta0's (rad, likewise), ``origin_row_weights``: the
-        weights of the measured (``ok``) rows in the origin's fit (None: alike).
+        ``theta0_sigma_rad``, ``theta0_check_sigma_rad``, ``theta0_check_difference_rad``:
+        theta0's (rad, likewise: :func:`theta0_fit`), ``theta0_window_s``: its fit's
+        window (s), ``theta0_rows`` (N,): the angles it was fitted to, from theta0 (rad;
+        ``theta``'s rows and the ``angle_rows``; NaN at others), ``origin_row_weights``: the weights of the measured (``ok``) rows in
+        the origin's fit (None: alike).
     """
     st = TrackingSettings() if settings is None else settings
     min_travel = st.min_travel_m
@@ -932,7 +935,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     window = _angle_window(coef) if deg == 2 else WINDOW_S
     ts, ths = t[aidx][sure_all], th_all[sure_all]
     fs = None if field is None else np.asarray(field)[aidx][sure_all]
-    th0 = float(initial_state(ts, ths, window)[0][0]) if ts.size else 0.0
+    angle0 = theta0_fit(ts, ths, fs, window)
+    th0 = angle0["theta0"]
     origin = np.array([x0, y0])
     disp = cc - origin
     reach = np.hypot(*disp.T)
@@ -952,6 +956,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     theta = np.full(t.shape, np.nan)
     x[idx], y[idx] = disp @ x_hat, disp @ y_hat
     theta[idx] = np.where(th_sure, th - th0, np.nan)
+    theta0_rows = np.full(t.shape, np.nan)
+    theta0_rows[aidx[sure_all]] = ths - th0
     late = _first_late(tt)
     # the origin is a fit even when the first frame is at t = 0: its error is every row's
     origin_sigma = _origin_sigma(tt, cc, st.max_deceleration_m_s2, extrapolated=late,
@@ -960,18 +966,40 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     f_ok = None if field is None else np.asarray(field)[idx]
     check = origin_check(tt, cc, weights=weights,
                          field=f_ok if f_ok is not None and (f_ok >= 0).all() else None)
-    # every angle is taken from theta0, itself a fit: its error is every row's (the
-    # camcorder bench clip, first field 0.25 s after release: all angles -8 deg off
-    # under a 0.9 deg sigma)
-    spin_stop = _spin_stop(ts, ths)
-    theta0_sigma = _theta0_sigma(ts, ths, fs, window, spin_stop) if ts.size else float("inf")
-    check_th = _theta0_check(ts, ths, fs, window, th0, theta0_sigma, spin_stop)
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
             "origin_sigma_m": float(origin_sigma), "origin_extrapolated": bool(late),
             "origin_check_sigma_m": check["sigma"],
             "origin_check_difference_m": check["difference"],
             "theta_unsure": np.isin(np.arange(t.size), idx[~th_sure]),
-            "theta0_sigma_rad": float(theta0_sigma), "origin_row_weights": weights,
-            "theta0_check_sigma_rad": check_th[0],
-            "theta0_check_difference_rad": check_th[1]}
+            "origin_row_weights": weights, "theta0_window_s": float(window),
+            "theta0_rows": theta0_rows,
+            **{k: v for k, v in angle0.items() if k != "theta0"}}
+
+
+def theta0_fit(t, theta, field, window_s: float) -> dict:
+    """theta0 (rad: the angle at t = 0 of :func:`initial_state`'s fit over ``window_s``)
+    and its uncertainty, from the rows ``t`` (s), cumulative ``theta`` (rad) and their
+    interlaced ``field`` (0/1, or None).
+
+    Every angle is taken from theta0, itself a fit: its error is every row's (the
+    camcorder bench clip, first field 0.25 s after release: all angles -8 deg off under
+    a 0.9 deg sigma).
+
+    Returns
+    -------
+    dict
+        ``theta0``; ``theta0_sigma_rad`` (:func:`_theta0_sigma`; inf without rows);
+        ``theta0_check_sigma_rad`` and ``theta0_check_difference_rad``: the error its
+        first rows share, which its fit cannot see (:func:`_theta0_check`).
+    """
+    t, theta = np.asarray(t, float), np.asarray(theta, float)
+    if not t.size:
+        return {"theta0": 0.0, "theta0_sigma_rad": float("inf"),
+                "theta0_check_sigma_rad": 0.0, "theta0_check_difference_rad": 0.0}
+    th0 = float(initial_state(t, theta, window_s)[0][0])
+    spin_stop = _spin_stop(t, theta)
+    sigma = _theta0_sigma(t, theta, field, window_s, spin_stop)
+    check = _theta0_check(t, theta, field, window_s, th0, sigma, spin_stop)
+    return {"theta0": th0, "theta0_sigma_rad": float(sigma),
+            "theta0_check_sigma_rad": check[0], "theta0_check_difference_rad": check[1]}
