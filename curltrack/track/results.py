@@ -161,8 +161,9 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     its own sigmas) with fewer than :data:`MIN_SIGMA_DOF` degrees of freedom.
     ``off_path`` ((N,) bool): rows the path through the others misses by more than
     :data:`~curltrack.track.scatter.CLIP` times their ``sigma_xy`` (wrong rows, for
-    the caller to refuse); ``off_path_theta`` likewise for the angle (wrong angles); ``n_wrong``: the rows left out of the scale; ``unchecked``
-    ((N,) bool): rows amid refused frames too few rows around could check
+    the caller to refuse); ``off_path_theta`` likewise for the angle (wrong angles);
+    ``n_wrong``: the rows left out of the scale; ``unchecked`` ((N,) bool): rows amid
+    refused frames too few rows around could check
     (:func:`~curltrack.track.scatter.path_scatter`; the caller refuses them too).
     """
     from .scatter import path_scatter
