@@ -908,8 +908,8 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
         ``theta0_sigma_rad``, ``theta0_check_sigma_rad``, ``theta0_check_difference_rad``:
         theta0's (rad, likewise: :func:`theta0_fit`), ``theta0_window_s``: its fit's
         window (s), ``theta0_rows`` (N,): the angles it was fitted to, from theta0 (rad;
-        ``theta``'s rows and the ``angle_rows``; NaN at others), ``origin_row_weights``: the weights of the measured (``ok``) rows in
-        the origin's fit (None: alike).
+        ``theta``'s rows and the ``angle_rows``; NaN at others), ``origin_row_weights``:
+        the weights of the measured (``ok``) rows in the origin's fit (None: alike).
     """
     st = TrackingSettings() if settings is None else settings
     min_travel = st.min_travel_m
