@@ -849,7 +849,7 @@ def _theta0_check(t, theta, field, window_s: float, theta0: float, sigma: float,
     span = min(THETA0_CHECK_SPAN * window_s, end - start)
     later = t >= start
     tl = t[later]
-    if tl.size == 0 or span < window_s or np.count_nonzero(tl <= start + span) < 16:
+    if tl.size == 0 or span < window_s or np.count_nonzero(tl <= start + span + 1e-9) < 16:
         return 0.0, 0.0
     theta0_later = float(initial_state(tl, theta[later], span)[0][0])
     f_later = None if field is None else np.asarray(field)[later]

@@ -678,5 +678,7 @@ def test_theta0_check_needs_a_window_of_later_rows():
             what = f"seed {seed}: window {window:.2f} s, rows to {reach:.2f} of one: {out}"
             if not checked:
                 assert out == (0.0, 0.0), what
-            elif np.count_nonzero(tk >= start) >= 16:
+            elif np.count_nonzero(tk >= start) >= 16 and np.isfinite(sigma):
+                # (theta0's own sigma infinite - too few rows for its fit - has no check;
+                # farm seed 2703459664: 23 rows at 25 fps)
                 assert out[1] > 0.0, what
