@@ -139,9 +139,9 @@ def detection_limits(J0, effect_cols, threshold: float, k, n: int) -> list:
 FEW_ROWS = 3
 
 
-def _few_rows(share, groups, few: int):
+def few_rows(share, groups=None, few: int = FEW_ROWS):
     """(the gain without the ``few`` rows that carry most of it, their residuals):
-    :func:`without_few_rows` and :func:`top_rows` for an (n, B) ``share``."""
+    :func:`without_few_rows` and :func:`top_rows` of an (n, B) ``share`` at once."""
     n = share.shape[0]
     if groups is None:
         table, sums = np.arange(n)[:, None], share
@@ -185,7 +185,7 @@ def without_few_rows(share, groups=None, few: int = FEW_ROWS):
         The sum of ``share``, less the ``few`` largest positive sums over rows.
     """
     share = np.asarray(share, dtype=float)
-    gain, _ = _few_rows(share[:, None] if share.ndim == 1 else share, groups, few)
+    gain, _ = few_rows(share[:, None] if share.ndim == 1 else share, groups, few)
     return float(gain[0]) if share.ndim == 1 else gain
 
 
@@ -206,7 +206,7 @@ def top_rows(share, groups=None, few: int = FEW_ROWS) -> np.ndarray:
         fewer rows that gain).
     """
     share = np.asarray(share, dtype=float)
-    _, idx = _few_rows(share[:, None] if share.ndim == 1 else share, groups, few)
+    _, idx = few_rows(share[:, None] if share.ndim == 1 else share, groups, few)
     return idx[0] if share.ndim == 1 else idx
 
 
@@ -368,7 +368,7 @@ def bootstrap_threshold(bases, r0, segments, k, n: int, rng,
         r = star[:, cols]
         f = bases[b] @ (bases[b].T @ r)
         share[:, cols] = r * r - (r - f) ** 2
-    robust, rows = _few_rows(share, groups, FEW_ROWS)
+    robust, rows = few_rows(share, groups)
     robust = robust - pen[best]
     if Q0 is not None:
         robust -= refit_gain_without(Q0, star, rows)

@@ -1065,9 +1065,9 @@ def _judge_few_rows(score: CandidateScore, fit0: FitOut, scale, groups) -> None:
     J0 = fit0.J * scale[:, None]
     Q0 = scoring.orth_basis(J0)
     r0 = fit0.r * scale
-    refit = scoring.refit_gain_without(Q0, r0 - Q0 @ (Q0.T @ r0),
-                                       scoring.top_rows(share, groups))
-    dbic = scoring.without_few_rows(share, groups) - refit - score.k * np.log(fit0.n)
+    gain, rows = scoring.few_rows(share[:, None], groups)
+    refit = scoring.refit_gain_without(Q0, r0 - Q0 @ (Q0.T @ r0), rows[0])
+    dbic = float(gain[0]) - refit - score.k * np.log(fit0.n)
     thr = score.threshold
     # (calibrated as the data's statistic is; the absolute floor of strong evidence,
     # :func:`.scoring.support_level`, is the whole gain's: without its best rows a real
