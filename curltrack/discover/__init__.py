@@ -24,8 +24,9 @@ delta-BIC if its residuals then look like noise (no structure test significant a
 family-wise level :data:`residuals.STRUCTURE_LEVEL`) and no other candidate comes within
 :data:`report.AMBIGUITY_MARGIN` of its delta-BIC; otherwise ``unexplained`` (with the
 rivals under ``unexplained.ambiguous`` when the evidence cannot tell them apart - but
-only if the baseline's residuals were structured: rivals alike on residuals that look
-like noise give ``none``, the candidates listed among the findings).  With
+only if the baseline's residuals were structured or every rival is supported on its
+own: a supported candidate alike an unsupported one, on residuals that look like noise,
+gives ``none``, the candidates listed among the findings).  With
 no supported candidate: ``unexplained`` if the baseline residuals are structured, else
 ``none``.  Delta-BIC, threshold and the structure after are measured under the noise
 the candidate's own residuals show (:func:`.search.rescore`: an instrument's persisting
