@@ -342,3 +342,26 @@ def test_no_noise_class_reads_as_a_rock_that_speeds_up(seed):
                             noise_class=kind, sampling=samp, seed=int(rng.integers(2**31)))
         said = [w for w in check_units(s) if "speeds up" in w]
         assert said == [], (seed, i, kind, rate, said)
+
+
+def test_a_step_beside_a_gap_is_no_speed_rise(seed):
+    """A rock at 2-4 m/s sampled at 25-60 Hz, a gap in its series from 1 s to 1.6-1.75
+    s, and an instrument's 10-20 cm step forward amid the rows after it: the 1 s window
+    from 1 s holds those 0.25-0.4 s alone, and such a step read as a rise from 2.97 to
+    3.79 m/s (CI seed 2490891148).  A window is measured only where its rows cover half
+    of it: the speed never reads as rising."""
+    from curltrack.sanity import speed_rise
+
+    rng = np.random.default_rng(seed)
+    for i in range(20):
+        rate = float(rng.choice([25, 30, 50, 60]))
+        u, a = rng.uniform(2.0, 4.0), 0.08
+        t = np.arange(0.0, 15.0, 1.0 / rate)
+        # (the gap begins just before a window's start, at 1 s, and ends 0.25-0.4 s
+        # before its end; the step forward, as a rise would be, amid those rows)
+        g1 = 2.0 - rng.uniform(0.25, 0.4)
+        t = t[(t < 1.0 - rng.uniform(0.0, 1.0 / rate)) | (t > g1)]
+        y = u * t - 0.5 * a * t ** 2 + rng.normal(0, 0.002, t.size)
+        y += rng.uniform(0.1, 0.2) * (t > 0.5 * (g1 + 2.0))
+        xy = np.c_[np.zeros_like(t), y]
+        assert speed_rise(t, xy) is None, (seed, i, rate, u)
