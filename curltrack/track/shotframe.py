@@ -306,7 +306,8 @@ def initial_state(t: np.ndarray, q: np.ndarray, window_s: float = WINDOW_S, min_
 def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
                   window_s: float = WINDOW_S, min_points: int = 8, min_scatter=MIN_SCATTER_M,
                   min_cubic=EXTRAPOLATION_M_S3, noise=None, extrapolated=True,
-                  weights=None, field=None, scatter: float = 0.0) -> float:
+                  weights=None, field=None, scatter: float = 0.0,
+                  measure_cubic: bool = True) -> float:
     """1 sigma (m; per coordinate) of the value at t = 0 of :func:`initial_state`'s fit.
 
     The fit's own variance plus, when the first frame is after t = 0
@@ -406,7 +407,7 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
         accel = 2.0 * np.linalg.norm(coef[2])
         speed = np.linalg.norm(coef[1] + 2.0 * coef[2] * float(np.mean(tk)))
         cubic = max(min_cubic, MAX_ABS_PHI * accel ** 2 / max(speed, 0.05) / 6.0)
-        measured = path_cubic(t, q, coef, weights)
+        measured = path_cubic(t, q, coef, weights) if measure_cubic else None
         if measured is not None:
             cubic = max(min_cubic, min(cubic, measured))
         # (what the extrapolation adds: the fit's own cubic bias at its first row is not
@@ -788,24 +789,42 @@ def _spin_stop(t, theta):
     return rotation_stop(t, theta, float(np.median(np.diff(t))))[0] if t.size >= 16 else None
 
 
-def _theta0_sigma(t, theta, field, window_s: float, stop) -> float:
+#: Rows on either side of the spin's stop that :func:`_theta0_sigma` leaves out of the
+#: angle's noise: the largest lag of the noise's second differences
+#: (:func:`curltrack.series.noise.estimate_noise`, 6) and two more.
+STOP_MARGIN_ROWS = 8
+
+
+def _theta0_sigma(t, theta, field, window_s: float, stop, measure_cubic=True) -> float:
     """1 sigma (rad) of theta0 (:func:`_origin_sigma` of the angle): its noise read on the
-    rows before the spin stops (:func:`~curltrack.series.stops.rotation_stop`; the
+    rows before the spin stops, :data:`STOP_MARGIN_ROWS` short of it (all rows but
+    those about the stop when fewer than 30 are left;
+    :func:`~curltrack.series.stops.rotation_stop`; the
     rows of its last approach, whose angle bends faster and faster, read as noise that
     persists: a clean 1280x720 hand-held clip's 0.13 deg white error as 0.41 deg at
     rho 0.93, theta0's sigma 3.6x its rows' own) and at least its window's
     :func:`intercept_scatter` there.  ``stop``: the spin's stop on these rows
-    (:func:`_spin_stop`)."""
+    (:func:`_spin_stop`); ``measure_cubic``: :func:`_origin_sigma`'s."""
     end = stop if stop is not None and stop > t[0] else None
-    turning = np.ones(t.size, bool) if end is None else t < end
-    if np.count_nonzero(turning) < 30:  # (too few to read the noise on: all of them)
+    turning = np.ones(t.size, bool)
+    if end is not None:
+        # (and not the rows about the stop, whose lagged second differences span its
+        # kink: a ladder clip whose spin stopped from 140 deg/s in 1.3 s read its 0.19
+        # deg error as 0.73 deg at rho 0.95 on the 36 rows before the stop, theta0's
+        # sigma 0.76 deg for a 0.14 deg error)
+        near = np.abs(t - end) <= STOP_MARGIN_ROWS * float(np.median(np.diff(t)))
+        turning = (t < end) & ~near
+        if np.count_nonzero(turning) < 30:  # (too few to read the noise on: all but those)
+            turning = ~near
+    if np.count_nonzero(turning) < 30:
         turning[:] = True
     f = None if field is None else np.asarray(field)[turning]
     return _origin_sigma(t, theta, MAX_ANGULAR_DECELERATION, window_s=window_s,
                          min_scatter=MIN_SCATTER_RAD, min_cubic=EXTRAPOLATION_RAD_S3,
                          noise=_frame_noise(t[turning], theta[turning], f),
                          extrapolated=_first_late(t), field=field,
-                         scatter=intercept_scatter(t, theta, window_s, end))
+                         scatter=intercept_scatter(t, theta, window_s, end),
+                         measure_cubic=measure_cubic)
 
 
 #: :func:`_theta0_check`'s later fit: from this fraction of theta0's window after the
@@ -853,8 +872,12 @@ def _theta0_check(t, theta, field, window_s: float, theta0: float, sigma: float,
         return 0.0, 0.0
     theta0_later = float(initial_state(tl, theta[later], span)[0][0])
     f_later = None if field is None else np.asarray(field)[later]
+    # (the later fit's extrapolation back takes the path's cubic at its bound: a
+    # cubic measured on noisy rows can read short - a DV clip's 0.32 deg/s^3 for the
+    # truth's 0.56-0.71 left the later fit 0.75 deg off under a 0.43 deg sigma, and a
+    # right theta0 was widened to 0.9 deg)
     var = sigma ** 2 + _theta0_sigma(tl, theta[later], f_later, span,
-                                     _spin_stop(tl, theta[later])) ** 2
+                                     _spin_stop(tl, theta[later]), measure_cubic=False) ** 2
     d2 = (theta0 - theta0_later) ** 2
     if not d2 > THETA0_CHECK_CHI2 * var:
         return 0.0, float(np.sqrt(d2))
