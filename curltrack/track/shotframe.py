@@ -397,19 +397,9 @@ def _origin_sigma(t: np.ndarray, q: np.ndarray, max_deceleration_m_s2: float,
         return float(stat)
     tk = A[:, 1]
     if deg == 2:
-        # the path's cubic term, bounded from the fit's own deceleration and speed (a
-        # slow rock on keen ice decelerates faster and changes its deceleration faster:
-        # a 640x360 handheld draw first measured 1 s after release was 22 mm off its
-        # extrapolated origin, against ~3 mm from a fixed bound) - or measured over the
-        # rows after, where that is less (the bound is |phi| <= 1's: the sweep's draws,
-        # phi -0.1 near their start, had origins 0.5 mm off under 2-8 mm) - times what a
-        # cubic does to this fit's intercept
-        accel = 2.0 * np.linalg.norm(coef[2])
-        speed = np.linalg.norm(coef[1] + 2.0 * coef[2] * float(np.mean(tk)))
-        cubic = max(min_cubic, MAX_ABS_PHI * accel ** 2 / max(speed, 0.05) / 6.0)
-        measured = path_cubic(t, q, coef, weights) if measure_cubic else None
-        if measured is not None:
-            cubic = max(min_cubic, min(cubic, measured))
+        # the path's cubic term (_cubic_size) times what a cubic does to this fit's
+        # intercept
+        cubic = _cubic_size(t, q, coef, tk, weights, min_cubic, measure_cubic)
         # (what the extrapolation adds: the fit's own cubic bias at its first row is not
         # counted where the first row is at t = 0 either - a DV field one frame late,
         # 0.04 s, took the bound's whole 1.8 mm for rows 0.5 mm off, e/sigma 0.20)
@@ -436,6 +426,38 @@ def _linear_stop(coef) -> tuple[float, float, float]:
 CUBIC_WINDOW_S = 3.0 * WINDOW_S
 #: Fewest rows :func:`path_cubic` fits a cubic to.
 CUBIC_MIN_ROWS = 16
+
+
+def _cubic_size(t, q, coef, tk, weights, min_cubic: float, measure: bool = True) -> float:
+    """The path's cubic coefficient (units of ``q`` per s^3) that a quadratic ``coef``
+    fitted at times ``tk`` may miss: bounded from its own deceleration and speed (a
+    slow rock on keen ice decelerates faster and changes its deceleration faster: a
+    640x360 handheld draw first measured 1 s after release was 22 mm off its
+    extrapolated origin, against ~3 mm from a fixed bound) - or measured over the rows
+    after (:func:`path_cubic`), where that is less (the bound is |phi| <= 1's: the
+    sweep's draws, phi -0.1 near their start, had origins 0.5 mm off under 2-8 mm);
+    never under ``min_cubic``.  ``measure``: False takes the bound alone."""
+    accel = 2.0 * np.linalg.norm(coef[2])
+    speed = np.linalg.norm(coef[1] + 2.0 * coef[2] * float(np.mean(tk)))
+    cubic = max(min_cubic, MAX_ABS_PHI * accel ** 2 / max(speed, 0.05) / 6.0)
+    measured = path_cubic(t, q, coef, weights) if measure else None
+    if measured is not None:
+        cubic = max(min_cubic, min(cubic, measured))
+    return float(cubic)
+
+
+def origin_cubic_bias(t, q, weights=None) -> tuple[float, float]:
+    """(moment, cubic) of the origin's fit (:func:`initial_state`'s over the rows ``t``,
+    ``q`` with row ``weights``): its value at t = 0 moves by ``cubic * moment`` (m) for
+    a path whose cubic coefficient is ``cubic`` (m/s^3, :func:`_cubic_size`); ``moment``
+    (s^3) is the fit's value at t = 0 of t^3.  (0, 0) where the fit is no quadratic."""
+    q = np.asarray(q, float).reshape(len(t), -1)
+    deg, A, coef, _, sw = _window_fit(t, q, WINDOW_S, 8, weights)
+    if deg != 2:
+        return 0.0, 0.0
+    tk = A[:, 1]
+    moment = float(_intercept_weights(A, sw) @ tk ** 3)
+    return moment, _cubic_size(t, q, coef, tk, weights, EXTRAPOLATION_M_S3)
 
 
 def path_cubic(t: np.ndarray, q: np.ndarray, coef: np.ndarray, weights=None) -> float | None:
@@ -932,7 +954,9 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
         theta0's (rad, likewise: :func:`theta0_fit`), ``theta0_window_s``: its fit's
         window (s), ``theta0_rows`` (N,): the angles it was fitted to, from theta0 (rad;
         ``theta``'s rows and the ``angle_rows``; NaN at others), ``origin_row_weights``:
-        the weights of the measured (``ok``) rows in the origin's fit (None: alike).
+        the weights of the measured (``ok``) rows in the origin's fit (None: alike),
+        ``origin_cubic_moment_s3`` and ``origin_cubic_m_s3``: how far the path's cubic
+        term can move the origin (:func:`origin_cubic_bias`).
     """
     st = TrackingSettings() if settings is None else settings
     min_travel = st.min_travel_m
@@ -989,13 +1013,15 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     f_ok = None if field is None else np.asarray(field)[idx]
     check = origin_check(tt, cc, weights=weights,
                          field=f_ok if f_ok is not None and (f_ok >= 0).all() else None)
+    moment, cubic = origin_cubic_bias(tt, cc, weights)
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
             "origin_sigma_m": float(origin_sigma), "origin_extrapolated": bool(late),
             "origin_check_sigma_m": check["sigma"],
             "origin_check_difference_m": check["difference"],
             "theta_unsure": np.isin(np.arange(t.size), idx[~th_sure]),
-            "origin_row_weights": weights, "theta0_window_s": float(window),
+            "origin_row_weights": weights, "origin_cubic_moment_s3": moment,
+            "origin_cubic_m_s3": cubic, "theta0_window_s": float(window),
             "theta0_rows": theta0_rows,
             **{k: v for k, v in angle0.items() if k != "theta0"}}
 
