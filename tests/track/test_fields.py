@@ -390,9 +390,10 @@ def test_doctor_judges_interlaced_frames_by_their_fields(tmp_path):
 def test_a_frame_whose_two_fields_disagree_is_refused():
     """Two fields of a frame are two exposures of one path 1/60 s apart: rows that the
     other field's rows miss by over 5 sigma - a frame split 14-24 sigma apart, each
-    field off by half, the series' first frame among them - are found (a row off by s
-    is missed by ~0.75 s: its neighbours of the other field include its own frame's
-    partner, off the other way); on clean fields (with a systematic offset between
+    field off by half, the series' first frame among them - are found, all but at most
+    one in 160 that the noise hides (a row off by s is missed by ~0.75 s: its
+    neighbours of the other field include its own frame's partner, off the other way);
+    on clean fields (with a systematic offset between
     them, and lost rows) at most one row in 1000."""
     from curltrack.track.results import fields_disagree
 
@@ -422,7 +423,10 @@ def test_a_frame_whose_two_fields_disagree_is_refused():
         found = fields_disagree(t, split, field, okk, sigma)
         missed += int(np.count_nonzero(~(found[2 * frames] | found[2 * frames + 1])))
     assert false <= max(1, n_rows // 1000), (seed, false, n_rows)
-    assert missed == 0, (seed, missed)
+    # (a split row's miss is ~0.75 of the split over ~1.2-1.5 of its sigma: a 14 sigma
+    # split is found unless the three rows' noise takes 3-4 sigma off it - one of the
+    # 160 splits was missed so in 11 of 2699 runs, seed 3215016539 - two, never)
+    assert missed <= 1, (seed, missed)
 
 
 def test_the_fields_pull_follows_the_image_motion_a_shaking_camera_makes():
