@@ -1522,6 +1522,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         frame_axis_source=shot["direction_source"],
         theta0_lattice_rad=shot["theta0"],
         theta0_shared_err_rad=float(shot["theta0_check_sigma_rad"]),
+        # (the part of every row's sigma_theta that all rows share: theta0's error)
+        theta0_sigma_rad=float(theta0_sigma),
         tracking_settings=st.summary(),
         sigma_scale_xy=(round(cal["scale_xy"], 4) if np.isfinite(cal["scale_xy"]) else None),
         sigma_scale_theta=(round(cal["scale_theta"], 4) if np.isfinite(cal["scale_theta"])
