@@ -147,7 +147,8 @@ def _window_speeds(t, xy, window_s: float):
         # (a window a gap empties is as short as its rows: a 50 Hz step-noise series'
         # 1 s window held the 0.3 s after a 0.7 s gap, and a 15 cm step there read as a
         # rise from 2.97 to 3.79 m/s - CI seed 2490891148)
-        if n < SPEEDUP_MIN_ROWS or np.sum(np.minimum(np.diff(t[sel]), 2.0 * step)) < 0.5 * window_s:
+        covered = float(np.sum(np.minimum(np.diff(t[sel]), 2.0 * step)))
+        if n < SPEEDUP_MIN_ROWS or covered < 0.5 * window_s:
             continue
         tc = t[sel] - t[sel].mean()
         sxx = float(tc @ tc)

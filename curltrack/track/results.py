@@ -1022,9 +1022,9 @@ def strays_shift_origin(with_them: dict, without: dict) -> bool:
     # start at different times (a 60 fps action camera whose rock stopped at 1.8 s,
     # decelerating at 0.45 m/s^2: the right first four rows left out moved the origin
     # 1.6 mm - 0.6 mm of it the cubic's - and every row of the shot was 2.5 mm off)
-    cubic = max(with_them.get("origin_cubic_m_s3", 0.0), without.get("origin_cubic_m_s3", 0.0))
-    var += (cubic * (with_them.get("origin_cubic_moment_s3", 0.0)
-                     - without.get("origin_cubic_moment_s3", 0.0))) ** 2
+    cubic = max(with_them["origin_cubic_m_s3"], without["origin_cubic_m_s3"])
+    var += (cubic * (with_them["origin_cubic_moment_s3"]
+                     - without["origin_cubic_moment_s3"])) ** 2
     d = np.asarray(without["origin"], float) - np.asarray(with_them["origin"], float)
     return bool(float(d @ d) / var > STRAY_SHIFT_CHI2)
 

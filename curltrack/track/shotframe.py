@@ -446,15 +446,12 @@ def _cubic_size(t, q, coef, tk, weights, min_cubic: float, measure: bool = True)
     return float(cubic)
 
 
-def origin_cubic_bias(t, q, weights=None) -> tuple[float, float]:
-    """(moment, cubic) of the origin's fit (:func:`initial_state`'s over the rows ``t``,
-    ``q`` with row ``weights``): its value at t = 0 moves by ``cubic * moment`` (m) for
-    a path whose cubic coefficient is ``cubic`` (m/s^3, :func:`_cubic_size`); ``moment``
-    (s^3) is the fit's value at t = 0 of t^3.  (0, 0) where the fit is no quadratic."""
-    q = np.asarray(q, float).reshape(len(t), -1)
-    deg, A, coef, _, sw = _window_fit(t, q, WINDOW_S, 8, weights)
-    if deg != 2:
-        return 0.0, 0.0
+def origin_cubic_bias(t, q, A, coef, sw, weights=None) -> tuple[float, float]:
+    """(moment, cubic) of the origin's quadratic fit (:func:`_window_fit`'s design
+    ``A``, coefficients ``coef`` and root weights ``sw`` over the rows ``t``, ``q`` with
+    row ``weights``): its value at t = 0 moves by ``cubic * moment`` (m) for a path
+    whose cubic coefficient is ``cubic`` (m/s^3, :func:`_cubic_size`); ``moment`` (s^3)
+    is the fit's value at t = 0 of t^3."""
     tk = A[:, 1]
     moment = float(_intercept_weights(A, sw) @ tk ** 3)
     return moment, _cubic_size(t, q, coef, tk, weights, EXTRAPOLATION_M_S3)
@@ -980,7 +977,7 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     at_ok = np.searchsorted(aidx, idx)
     th, th_sure = th_all[at_ok], sure_all[at_ok]
     weights = None if sigma is None else row_weights(np.asarray(sigma, float)[idx])
-    deg, _, coef, _, _ = _window_fit(tt, cc, weights=weights)
+    deg, A0, coef, _, sw0 = _window_fit(tt, cc, weights=weights)
     (x0, y0), (vx, vy) = coef[0], (coef[1] if deg >= 1 else np.zeros(2))
     # theta0 over its own window (_angle_window); angles after a gap whose turns are
     # not counted may be a whole turn off: theta0 from the frames before it alone when
@@ -1019,7 +1016,9 @@ def to_shot_frame(t: np.ndarray, centre: np.ndarray, phi: np.ndarray, ok: np.nda
     f_ok = None if field is None else np.asarray(field)[idx]
     check = origin_check(tt, cc, weights=weights,
                          field=f_ok if f_ok is not None and (f_ok >= 0).all() else None)
-    moment, cubic = origin_cubic_bias(tt, cc, weights)
+    # (the same fit's: (0, 0) where it is no quadratic)
+    moment, cubic = (origin_cubic_bias(tt, cc, A0, coef, sw0, weights) if deg == 2
+                     else (0.0, 0.0))
     return {"x": x, "y": y, "theta": theta, "origin": origin, "x_hat": x_hat,
             "y_hat": y_hat, "theta0": float(th0), "direction_source": source,
             "origin_sigma_m": float(origin_sigma), "origin_extrapolated": bool(late),
