@@ -179,21 +179,32 @@ def rigid_extrapolation(p0, p1, n: float) -> np.ndarray:
 class _Follower:
     """Marker prediction and search window from the last measured frames."""
 
-    def __init__(self, det: MarkerDetector, rig: Rig):
+    def __init__(self, det: MarkerDetector, rig: Rig, per_frame: int = 1):
         self.det, self.rig = det, rig
-        self.hist: list[tuple[int, np.ndarray]] = []  # (frame, (M, 2) px)
+        #: (exposure, (M, 2) px) of the last measured exposures: two of each field
+        self.hist: list[tuple[int, np.ndarray]] = []
+        self.per_frame = per_frame
         self.lost = 0
         self._mask = None  # reused by mask(): (array, the slice last drawn on)
 
     def predicted(self, frame: int):
+        """The markers (px) predicted at exposure ``frame``: extrapolated from the last
+        two measured - of the same field where there are two (``per_frame`` = 2: as
+        :func:`_anchor`, the fields' markers differ by more than the rock's motion)."""
         if not self.hist:
             return None
         if len(self.hist) == 1:
             return self.hist[-1][1]
-        (f0, p0), (f1, p1) = self.hist[-2:]
-        if frame - f1 > 5:  # lost for a while: the camera follows the rock, hold still
+        hist = self.hist
+        if self.per_frame > 1:
+            same = [(f, p) for f, p in hist if (frame - f) % self.per_frame == 0]
+            if len(same) >= 2:
+                hist = same
+        (f0, p0), (f1, p1) = hist[-2:]
+        if abs(frame - f1) > 5:  # lost for a while: the camera follows the rock, hold still
             return p1
-        return rigid_extrapolation(p0, p1, (frame - f1) / max(f1 - f0, 1))
+        # (backwards too: :class:`_LeadIn`'s exposures come in falling order)
+        return rigid_extrapolation(p0, p1, (frame - f1) / (f1 - f0))
 
     def rock_px(self, frame: int):
         """(centre px, radius px) of the rock's top in the image, or None."""
@@ -262,7 +273,7 @@ class _Follower:
         if self.hist and len(xy) > 1 and self.lost <= FULL_SEARCH_FRAMES:
             if not abs(np.log(spread(xy) / spread(self.hist[-1][1]))) < np.log(LAYOUT_JUMP):
                 return False
-        self.hist = (self.hist + [(frame, xy.copy())])[-2:]
+        self.hist = (self.hist + [(frame, xy.copy())])[-2 * self.per_frame:]
         self.lost = 0
         return True
 
@@ -523,6 +534,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     rec_segment = 0  # grid segment of markers_ice
     frozen = _FrozenCheck()
     last_H = None  # the last frame's homography (undistorted px -> lattice m)
+    lead = _LeadIn(fol)
     img = None
     for fr in frames:
         rec = FrameRecord(fr.index, fr.t, field=fr.field)
@@ -621,55 +633,16 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
         if not pose.ok:
             rec.grid_status = f"grid: {pose.message}"
         if not found:
+            lead.keep(rec, fr, k, pose)
             continue
-        rec.markers_px = mf.xy_px
-        seen_at = None  # each marker's exposure time relative to the row's t (s)
-        if row_time is not None:
-            offsets = row_time(mf.xy_px, img.shape)
-            rec.t = fr.t + float(np.mean(offsets))
-            seen_at = offsets - offsets.mean()
-        if not pose.ok:
-            rec.status = f"grid: {pose.message}"
-            continue
-        if not calib.in_checked_lens(mf.xy_px).all():
-            rec.status = (f"lens: the rock is beyond the {calib.lens_radius_px:.0f} px from "
-                          f"the image centre where the threads confirm the wide-angle lens "
-                          f"(k1 = {calib.dist[0]:.3f}, k2 = {calib.dist[1]:.3f})")
-            continue
-        on_ice = apply_h(pose.H, q)
-        ice = on_ice[:M]
-        if pose.segment != rec_segment:  # (the last positions are in another cell index)
-            markers_ice, rec_segment = [], pose.segment
-        rec.segment = pose.segment
-        markers_ice = (markers_ice + [(k, ice)])[-4:]   # (two of each field)
-        c, phi, s, _ = similarity_fit(L, ice)
-        rec.mirrored = mirrored_layout(L, ice)
-        if seen_at is not None:
-            rate = _rock_rate(records, rec)
-            if rate is not None:  # each marker seen at its own row's time: one instant
-                ice = to_one_instant(ice, seen_at, rate[0], rate[1], c)
-                c, phi, s, _ = similarity_fit(L, ice)
-            else:
-                rec.shutter_pending = (ice, seen_at)
-        mpp = read_lattice_at_rock(rec, pose, calib, L, q, ice, c)
-        # (cells: a homography the threads leave free at the rock, however well it fits)
-        unsure = rec.grid_sigma_m / min(calib.spacing_x_m, calib.spacing_y_m)
-        if unsure > st.max_grid_sigma_cells:
-            rec.status = (f"grid: the lattice is not fixed at the rock (1 sigma "
-                          f"{unsure:.2f} cell): the threads measured leave it free there")
-            continue
-        rec.centre_app, rec.phi, rec.scale = c, phi, s
-        if fr.index % outline_every == 0:  # the scale's second ruler
-            rec.outline_m = outline_radius(img, pose.H, calib.K, calib.dist, c,
-                                           rig.rock_diameter_m / 2)[0]
-        rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
-        if fr.field is not None:
-            rec.sigma_m *= FIELD_SIGMA_FACTOR
-            rec.grid_sigma_m *= FIELD_SIGMA_FACTOR
-        rec.grid_residual_m, rec.m_per_px = pose.residual_px * mpp, mpp
-        rec.contrast = float(np.min(mf.contrast))
-        if pose.message:
-            rec.notes.append(pose.message)
+        ice = _measure_rock(rec, fr, img, mf, pose, calib, rig, L, records, row_time,
+                            outline_every, q)
+        if ice is not None:
+            if pose.segment != rec_segment:  # (the last positions: another cell index)
+                markers_ice, rec_segment = [], pose.segment
+            markers_ice = (markers_ice + [(k, ice)])[-4:]   # (two of each field)
+        lead.found(k, fr, mf.xy_px, lambda r, f, m, pz: _measure_rock(
+            r, f, f.image, m, pz, calib, rig, L, records, row_time, outline_every))
     if row_time is not None:
         _settle_shutter(records, L)
     info = {"calib": calib, "calib_msg": calib_msg, "calib_frame": calib_frame,
@@ -890,6 +863,140 @@ def track_video(video_path, rig: Rig, start_frame: int | None = None,
         write_debug_frames(video_path, debug_dir, debug_frames, records, series,
                            loop_info["calib"], rig)
     return series
+
+
+def _measure_rock(rec: FrameRecord, fr, img, mf, pose, calib, rig: Rig, L, records,
+                  row_time, outline_every: int, q=None):
+    """Measure the rock of one frame whose markers ``mf`` were all found, on the grid's
+    ``pose``: fills ``rec`` (apparent centre, angle, scale, sigmas, lattice at the rock)
+    or gives its status the reason it cannot be measured.  ``L``: the rig's marker
+    layout (m, rock frame).
+
+    Returns the markers on the ice (lattice m, (M, 2)) when the lattice reached them
+    (the grid's anchor for the next frames), else None.  ``q``: the markers and a
+    pixel's steps at their centre, undistorted (computed when not given).
+    """
+    from ..calib.grid import pixel_steps
+    from ..calib.lens import apply_h, undistort
+
+    M = len(L)
+    if q is None:
+        q = undistort(np.vstack([mf.xy_px, pixel_steps(mf.xy_px.mean(axis=0))]),
+                      calib.K, calib.dist)
+    rec.markers_px = mf.xy_px
+    seen_at = None  # each marker's exposure time relative to the row's t (s)
+    if row_time is not None:
+        offsets = row_time(mf.xy_px, img.shape)
+        rec.t = fr.t + float(np.mean(offsets))
+        seen_at = offsets - offsets.mean()
+    if not pose.ok:
+        rec.status = f"grid: {pose.message}"
+        return None
+    if not calib.in_checked_lens(mf.xy_px).all():
+        rec.status = (f"lens: the rock is beyond the {calib.lens_radius_px:.0f} px from "
+                      f"the image centre where the threads confirm the wide-angle lens "
+                      f"(k1 = {calib.dist[0]:.3f}, k2 = {calib.dist[1]:.3f})")
+        return None
+    ice = apply_h(pose.H, q)[:M]
+    rec.segment = pose.segment
+    c, phi, s, _ = similarity_fit(L, ice)
+    rec.mirrored = mirrored_layout(L, ice)
+    at_instant = ice
+    if seen_at is not None:
+        rate = _rock_rate(records, rec)
+        if rate is not None:  # each marker seen at its own row's time: one instant
+            at_instant = to_one_instant(ice, seen_at, rate[0], rate[1], c)
+            c, phi, s, _ = similarity_fit(L, at_instant)
+        else:
+            rec.shutter_pending = (ice, seen_at)
+    mpp = read_lattice_at_rock(rec, pose, calib, L, q, at_instant, c)
+    # (cells: a homography the threads leave free at the rock, however well it fits)
+    unsure = rec.grid_sigma_m / min(calib.spacing_x_m, calib.spacing_y_m)
+    if unsure > rig.tracking.max_grid_sigma_cells:
+        rec.status = (f"grid: the lattice is not fixed at the rock (1 sigma "
+                      f"{unsure:.2f} cell): the threads measured leave it free there")
+        return ice
+    rec.centre_app, rec.phi, rec.scale = c, phi, s
+    if fr.index % outline_every == 0:  # the scale's second ruler
+        rec.outline_m = outline_radius(img, pose.H, calib.K, calib.dist, c,
+                                       rig.rock_diameter_m / 2)[0]
+    rec.sigma_m = float(np.sqrt(np.mean(mf.sigma_px ** 2))) * mpp
+    if fr.field is not None:
+        rec.sigma_m *= FIELD_SIGMA_FACTOR
+        rec.grid_sigma_m *= FIELD_SIGMA_FACTOR
+    rec.grid_residual_m, rec.m_per_px = pose.residual_px * mpp, mpp
+    rec.contrast = float(np.min(mf.contrast))
+    if pose.message:
+        rec.notes.append(pose.message)
+    return ice
+
+
+#: :class:`_LeadIn` keeps at most this many bytes of images (the frames nearest the
+#: markers' first sighting): a 1080p video's ~40 frames, a DV video's ~300 fields.
+LEAD_IN_BYTES = 256 * 2 ** 20
+
+
+class _LeadIn:
+    """The frames before the markers were first found, looked at again backwards.
+
+    At release the rock is fastest: a camcorder's field (1/50-1/60 s) smears its markers
+    over more than their size, and their colours fade towards the rock's grey - too far
+    from the rig's colours for a search of the whole frame, so the first rows were lost
+    and the origin (the rock at t = 0) extrapolated back to them (a PAL DV clip: the
+    first 0.2 s, the origin 2.2 mm off).  Once the markers are found in two exposures,
+    the earlier ones are searched where those two put them, going back in time, with
+    the colours learnt on the sharp ones - as forwards after a loss.  The backward
+    search stops at its first miss; the detector's colours are restored after it, so
+    the forward pass is not changed by it.  The frames' images are kept until then
+    (:data:`LEAD_IN_BYTES` at most: the latest ones).
+    """
+
+    def __init__(self, follower: "_Follower"):
+        self.fol = follower
+        self.kept: list = []  # (rec, frame, k, pose) of frames not measured, in order
+        self.first: list = []  # (k, markers px) of the first exposures all found
+        self.nbytes = 0
+        self.done = False
+
+    def keep(self, rec: FrameRecord, fr, k: int, pose) -> None:
+        """A frame whose markers were not all found (before the first two that were)."""
+        if self.done:
+            return
+        self.kept.append((rec, fr, k, pose))
+        self.nbytes += fr.image.nbytes
+        while self.nbytes > LEAD_IN_BYTES and self.kept:
+            self.nbytes -= self.kept.pop(0)[1].image.nbytes
+
+    def found(self, k: int, fr, xy_px, measure) -> None:
+        """Exposure ``k`` (of frame ``fr``) had all its markers found: after two (of each
+        field), the kept frames are searched backwards, each found one measured by
+        ``measure(rec, frame, mf, pose)``."""
+        if self.done:
+            return
+        per_frame = 1 if fr.field is None else 2
+        self.first.append((k, np.asarray(xy_px, float).copy()))
+        if len(self.first) < 2 * per_frame:
+            return
+        self.done = True
+        k0 = self.first[0][0]
+        kept = [item for item in self.kept if item[2] < k0 and item[3] is not None]
+        self.kept = []
+        if not kept:
+            return
+        det = self.fol.det
+        learnt = det.memory()
+        back = _Follower(det, self.fol.rig, per_frame)
+        back.hist = self.first[::-1]
+        try:
+            for rec, fr, k, pose in reversed(kept):
+                mf = back.detect(fr.image, k)
+                if back.lost or mf is None or not mf.found.all():
+                    break
+                rec.status = ""
+                rec.markers_found = (True,) * len(mf.found)
+                measure(rec, fr, mf, pose)
+        finally:
+            det.recall(learnt)
 
 
 #: A readout given in the rig that is this many sigmas from the one the video shows is

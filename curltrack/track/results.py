@@ -161,7 +161,8 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     its own sigmas) with fewer than :data:`MIN_SIGMA_DOF` degrees of freedom.
     ``off_path`` ((N,) bool): rows the path through the others misses by more than
     :data:`~curltrack.track.scatter.CLIP` times their ``sigma_xy`` (wrong rows, for
-    the caller to refuse); ``off_path_theta`` likewise for the angle (wrong angles);
+    the caller to refuse); ``off_path_theta`` likewise for the angle (wrong angles;
+    ``miss_theta`` (N,): by how much the path misses them, rad, 0 elsewhere);
     ``n_wrong``: the rows left out of the scale; ``unchecked`` ((N,) bool): rows amid
     refused frames too few rows around could check
     (:func:`~curltrack.track.scatter.path_scatter`; the caller refuses them too).
@@ -171,7 +172,7 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
     n = len(t)
     out = dict(scale_xy=np.nan, scale_theta=np.nan, sigma_xy=np.full(n, np.nan),
                sigma_theta=np.full(n, np.nan), n_wrong=0, off_path=np.zeros(n, bool),
-               off_path_theta=np.zeros(n, bool),
+               off_path_theta=np.zeros(n, bool), miss_theta=np.zeros(n),
                unchecked=np.zeros(n, bool))
     tt = np.where(ok, t, np.nan)
     br = [b for b in (stops.t_stop_translation,) if b]
@@ -210,7 +211,8 @@ def calibrate_sigma(t, xy, theta, ok, field, stops, pix_xy, pix_theta, sys_xy, s
                               + np.asarray(sys_theta) ** 2)
         with np.errstate(invalid="ignore"):
             wrong = c["off_path"] & (c["miss"] > PATH_CLIP * sigma_theta)
-        out.update(scale_theta=c["scale"], sigma_theta=sigma_theta, off_path_theta=wrong)
+        out.update(scale_theta=c["scale"], sigma_theta=sigma_theta, off_path_theta=wrong,
+                   miss_theta=np.where(wrong, c["miss"], 0.0))
     return out
 
 
@@ -801,6 +803,25 @@ def camera_turn(records, calib) -> tuple[np.ndarray, np.ndarray]:
         rate = np.median(np.lib.stride_tricks.sliding_window_view(
             np.r_[rate[0], rate, rate[-1]], 3), axis=1)
     return frames[1:], rate
+
+
+def _marker_error_shift(rig: Rig) -> float:
+    """The rock's centre moves by up to this times a marker error's angle (m/rad).
+
+    One marker of M off by d across its radius r_i (from the markers' centroid) turns
+    the layout's similarity fit by d r_i / sum(r^2) and moves the markers' centroid by
+    d / M: by the angle's error times sum(r^2) / (M r_i), largest for the marker
+    nearest the centroid (of those that turn it); the rock's axis, at a distance from
+    that centroid, turns about it too.  Two markers 80 mm either side of the axis:
+    80 mm per rad (a DV field's angle 4.4 deg off: its position 5.1 mm off, the bound
+    6.2 mm).
+    """
+    L = np.array([[m.x_m, m.y_m] for m in rig.markers])
+    r = np.hypot(*(L - L.mean(0)).T)
+    if len(r) < 2 or not r.max() > 0:
+        return 0.0
+    return float(np.sum(r ** 2) / (len(r) * r[r > 0.1 * r.max()].min())
+                 + np.hypot(*L.mean(0)))
 
 
 def _layout_lever(rig: Rig) -> float:
@@ -1454,7 +1475,8 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         warnings.append(f"{path}: frame(s) {frame_ranges(frame[wrong_theta])}: the rock's "
                         f"angle is off its smooth path through the other rows by more "
                         f"than {PATH_CLIP:g} times sigma_theta (a marker error): theta "
-                        "left empty (x, y kept)")
+                        "left empty (x, y kept, sigma_xy widened by the centre's share of "
+                        "that error)")
         shot["theta"] = np.where(wrong_theta, np.nan, shot["theta"])
         _refit_theta0(shot, t, fld, np.where(wrong_theta, np.nan, shot["theta0_rows"]))
         theta0_sigma = float(np.hypot(shot["theta0_sigma_rad"],
@@ -1465,7 +1487,10 @@ def build_series(records, rig: Rig, info, start: int, loop_info: dict, path=None
         cal.update({k: v for k, v in calibrate(theta0_sigma, stops).items()
                     if k in ("scale_theta", "sigma_theta")})
     if np.isfinite(cal["scale_xy"]):
-        data["sigma_xy"] = np.where(ok, cal["sigma_xy"], np.nan)
+        # (a row whose angle shows a marker error: its centre moved with that marker -
+        # by up to the angle's miss times the layout's shift per radian)
+        shift = np.where(wrong_theta, cal["miss_theta"] * _marker_error_shift(rig), 0.0)
+        data["sigma_xy"] = np.where(ok, np.hypot(cal["sigma_xy"], shift), np.nan)
     if np.isfinite(cal["scale_theta"]):
         data["sigma_theta"] = np.where(ok & np.isfinite(sigma_theta), cal["sigma_theta"], np.nan)
     # a row the rock's smooth path through the others misses by more than CLIP times
