@@ -538,7 +538,6 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     img = None
     for fr in frames:
         rec = FrameRecord(fr.index, fr.t, field=fr.field)
-        fol.per_frame = 1 if fr.field is None else 2   # (its predictions: field by field)
         k = fr.sample  # running exposure index (frames, or fields of interlaced video)
         records.append(rec)
         if progress is not None:
