@@ -47,14 +47,6 @@ _BLOB_MAX_HUE_DEG = 75.0
 _WIN = (1.6, 1.5)
 _FLOOR = 0.1
 _CHROMA_P = np.eye(3) - 1.0 / 3.0  # RGB -> its component off the grey axis
-#: :meth:`MarkerDetector._refine`: the centroid is measured again around where it
-#: converged, at most this many times in all, until it moves by less than this (px).
-#: (Paired on random sweep set-ups, each rendered once, one pass against these: theta
-#: RMS lower on 35 and 35, higher on 18 and 15, of 55 and 53 set-ups; positions 36 / 17
-#: and 27 / 24 - every pass checked for the marker's colour on the first 55, the last
-#: only on the second, as here.)
-REFINE_PASSES = 4
-REFINE_TOL_PX = 0.05
 #: Markers at least this large (radius, px) are classified at half resolution (a blob of
 #: ~20 px is still a blob there); their sub-pixel centroid is measured at full resolution.
 _LOWRES_RADIUS_PX = 5.0
@@ -651,13 +643,16 @@ class MarkerDetector:
         return cost
 
     # --- sub-pixel -----------------------------------------------------------------------
-    def _centroid(self, image_bgr, c_xy, c_area):
-        """One pass of :meth:`_refine` started at ``c_xy`` (px): (cx, cy, sigma, area,
-        core colour, background colour (RGB)) or None."""
+    def _refine(self, image_bgr, lab, offset, c_xy, c_area, i, check_class=False):
+        """Coverage-weighted centroid around a blob; (xy, sigma, area, contrast) or None.
+
+        ``check_class``: also None unless the blob's core colour passes the
+        classification rule of :meth:`_class_masks` for marker ``i``.
+        """
         H, W = image_bgr.shape[:2]
         r = max(1.5, math.sqrt(c_area / math.pi))
         R_in, R_out = _WIN[0] * r + _WIN[1], 2.4 * r + 3.0
-        cx, cy = c_xy
+        cx, cy = float(c_xy[0]), float(c_xy[1])
         if min(cx, cy, W - 1 - cx, H - 1 - cy) < R_in:
             return None  # cut by the image border: its centroid would be biased
         xa, xb = max(0, math.floor(cx - R_out)), min(W, math.ceil(cx + R_out) + 1)
@@ -712,29 +707,6 @@ class MarkerDetector:
         sigma_w = max(noise, 0.5) * math.sqrt(float(proj @ proj)) / den
         r2 = float(rad2[inside].sum())
         sigma = sigma_w * math.sqrt(r2 / 2.0) / sw
-        return cx, cy, sigma, sw, col, bg
-
-    def _refine(self, image_bgr, lab, offset, c_xy, c_area, i, check_class=False):
-        """Coverage-weighted centroid around a blob; (xy, sigma, area, contrast) or None.
-
-        Measured again around where it converged (up to :data:`REFINE_PASSES` times,
-        until it moves by less than :data:`REFINE_TOL_PX`): the background ring and the
-        marker's core colour are read around the start, and a start off the marker by a
-        fraction of its radius reads them partly off it.
-
-        ``check_class``: also None unless the blob's core colour passes the
-        classification rule of :meth:`_class_masks` for marker ``i``.
-        """
-        c = (float(c_xy[0]), float(c_xy[1]))
-        for _ in range(REFINE_PASSES):
-            got = self._centroid(image_bgr, c, c_area)
-            if got is None:
-                return None
-            moved = math.hypot(got[0] - c[0], got[1] - c[1])
-            c = got[:2]
-            if moved < REFINE_TOL_PX:
-                break
-        cx, cy, sigma, sw, col, bg = got
         obs_lab, bg_lab = lab_of_rgb(np.clip(np.stack([col, bg]), 0, 255))
         if check_class and not self._is_class(obs_lab, bg_lab, i):
             return None
