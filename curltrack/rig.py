@@ -85,6 +85,11 @@ class Rig:
     source: str | None = None
     tracking: TrackingSettings = field(default_factory=TrackingSettings)
 
+    @property
+    def layout_m(self) -> np.ndarray:
+        """The markers' positions in the rock's frame (m, (M, 2), rig order)."""
+        return np.array([[m.x_m, m.y_m] for m in self.markers])
+
     def to_toml(self) -> str:
         """Serialise back to the contract's TOML."""
         lines = ["[grid]",

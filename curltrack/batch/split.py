@@ -126,7 +126,7 @@ def measure_motion(video, rig, progress: bool = False) -> dict:
     scale = min(1.0, MAX_WIDTH / info.width)
     det = MarkerDetector(rig)
     M = len(rig.markers)
-    layout = np.array([[m.x_m, m.y_m] for m in rig.markers])
+    layout = rig.layout_m
     dist = np.linalg.norm(layout[:, None] - layout[None], axis=2)
     i, j = np.unravel_index(np.argmax(dist), dist.shape)
     rock_per_sep = 0.75 * rig.rock_diameter_m / dist[i, j]  # masked radius / separation

@@ -82,7 +82,7 @@ def rock_sprites(rig: Rig, ppm: float, rng: np.random.Generator, pixel_m: float,
     """
     R = rig.rock_diameter_m / 2
     h = rig.rock_height_m
-    mk = np.array([[m.x_m, m.y_m] for m in rig.markers])
+    mk = rig.layout_m
     half = max(R, np.hypot(mk[:, 0], mk[:, 1]).max() + marker_diameter_m) + 0.03
     x, y = _grid(half, ppm)
     sprites = []

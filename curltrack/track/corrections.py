@@ -72,7 +72,7 @@ def apply_corrections(records, corr: dict, calib, rig) -> list[str]:
     from .parallax import similarity_fit
     from .pipeline import read_lattice_at_rock
 
-    L = np.array([[m.x_m, m.y_m] for m in rig.markers])
+    L = rig.layout_m
     by_frame = {r.frame: r for r in records}
     tracked = [r for r in records if r.status == ""]
     contrast = np.nanmedian([r.contrast for r in tracked] or [np.nan])

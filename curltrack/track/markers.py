@@ -154,7 +154,7 @@ class MarkerDetector:
     area_ref_px: float | None = field(default=None, init=False)
 
     def __post_init__(self):
-        self.layout_m = np.array([[m.x_m, m.y_m] for m in self.rig.markers])
+        self.layout_m = self.rig.layout_m
         self.ref_lab = np.array([lab_of_rgb(parse_color(m.color)) for m in self.rig.markers])
         self.colors_lab = self.ref_lab.copy()
         uniq, self.class_of = np.unique(self.ref_lab.round(1), axis=0, return_inverse=True)

@@ -534,7 +534,11 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
     rec_segment = 0  # grid segment of markers_ice
     frozen = _FrozenCheck()
     last_H = None  # the last frame's homography (undistorted px -> lattice m)
-    lead = _LeadIn(fol)
+
+    def measure_lead(rec, fr, mf, pose):  # (calib: the loop's, set before any is found)
+        _measure_rock(rec, fr, fr.image, mf, pose, calib, rig, L, records, row_time,
+                      outline_every)
+    lead = _LeadIn(fol, measure_lead)
     img = None
     for fr in frames:
         rec = FrameRecord(fr.index, fr.t, field=fr.field)
@@ -641,8 +645,7 @@ def track_frames(frames, rig: Rig, path=None, progress=None, outline_every: int 
             if pose.segment != rec_segment:  # (the last positions: another cell index)
                 markers_ice, rec_segment = [], pose.segment
             markers_ice = (markers_ice + [(k, ice)])[-4:]   # (two of each field)
-        lead.found(k, fr, mf.xy_px, lambda r, f, m, pz: _measure_rock(
-            r, f, f.image, m, pz, calib, rig, L, records, row_time, outline_every))
+        lead.found(k, fr, mf.xy_px)
     if row_time is not None:
         _settle_shutter(records, L)
     info = {"calib": calib, "calib_msg": calib_msg, "calib_frame": calib_frame,
@@ -951,8 +954,8 @@ class _LeadIn:
     (:data:`LEAD_IN_BYTES` at most: the latest ones).
     """
 
-    def __init__(self, follower: "_Follower"):
-        self.fol = follower
+    def __init__(self, follower: "_Follower", measure):
+        self.fol, self.measure = follower, measure
         self.kept: list = []  # (rec, frame, k, pose) of frames not measured, in order
         self.first: list = []  # (k, markers px) of the first exposures all found
         self.nbytes = 0
@@ -967,10 +970,10 @@ class _LeadIn:
         while self.nbytes > LEAD_IN_BYTES and self.kept:
             self.nbytes -= self.kept.pop(0)[1].image.nbytes
 
-    def found(self, k: int, fr, xy_px, measure) -> None:
+    def found(self, k: int, fr, xy_px) -> None:
         """Exposure ``k`` (of frame ``fr``) had all its markers found: after two (of each
         field), the kept frames are searched backwards, each found one measured by
-        ``measure(rec, frame, mf, pose)``."""
+        ``measure(rec, frame, mf, pose)`` (given at construction)."""
         if self.done:
             return
         per_frame = 1 if fr.field is None else 2
@@ -979,7 +982,7 @@ class _LeadIn:
             return
         self.done = True
         k0 = self.first[0][0]
-        kept = [item for item in self.kept if item[2] < k0 and item[3] is not None]
+        kept = [item for item in self.kept if item[2] < k0]
         self.kept = []
         if not kept:
             return
@@ -994,7 +997,7 @@ class _LeadIn:
                     break
                 rec.status = ""
                 rec.markers_found = (True,) * len(mf.found)
-                measure(rec, fr, mf, pose)
+                self.measure(rec, fr, mf, pose)
         finally:
             det.recall(learnt)
 

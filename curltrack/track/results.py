@@ -816,7 +816,7 @@ def _marker_error_shift(rig: Rig) -> float:
     80 mm per rad (a DV field's angle 4.4 deg off: its position 5.1 mm off, the bound
     6.2 mm).
     """
-    L = np.array([[m.x_m, m.y_m] for m in rig.markers])
+    L = rig.layout_m
     r = np.hypot(*(L - L.mean(0)).T)
     if len(r) < 2 or not r.max() > 0:
         return 0.0
@@ -827,7 +827,7 @@ def _marker_error_shift(rig: Rig) -> float:
 def _layout_lever(rig: Rig) -> float:
     """The marker layout's lever (m): the root of the markers' summed squared distances
     from their centre (an angle's error is a marker's over it)."""
-    L = np.array([[m.x_m, m.y_m] for m in rig.markers])
+    L = rig.layout_m
     return float(np.sqrt(np.sum((L - L.mean(0)) ** 2)))
 
 

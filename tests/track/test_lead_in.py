@@ -61,12 +61,13 @@ def _run(rig, motion, rng, n_kept, blank=None):
     measured backwards ({k: markers px}) and whether the detector's colours came back."""
     det = MarkerDetector(rig)
     fol = _Follower(det, rig)
-    lead = _LeadIn(fol)
+    measured = {}
+    lead = _LeadIn(fol, lambda rec, f, m, pose: measured.update(
+        {rec.frame: (rec.status, m.xy_px.copy())}))
     for k in range(n_kept):
         img = _image(rig, motion, k, rng, rock=k != blank)
         lead.keep(FrameRecord(k, k / 30.0, status="markers not found"),
                   Frame(k, k / 30.0, img), k, pose=object())
-    measured = {}
     before = None
     for k in (n_kept, n_kept + 1):
         fr = Frame(k, k / 30.0, _image(rig, motion, k, rng))
@@ -74,8 +75,7 @@ def _run(rig, motion, rng, n_kept, blank=None):
         assert mf is not None and mf.found.all()
         if k == n_kept + 1:
             before = det.memory()
-        lead.found(k, fr, mf.xy_px, lambda rec, f, m, pose: measured.update(
-            {rec.frame: (rec.status, m.xy_px.copy())}))
+        lead.found(k, fr, mf.xy_px)
     after = det.memory()
     same = np.array_equal(before[0], after[0]) and before[1] == after[1]
     return measured, same
